@@ -1,0 +1,161 @@
+#ifndef STRUCTGP_MODEL_WEIGHT_SPACE_GP_H_
+#define STRUCTGP_MODEL_WEIGHT_SPACE_GP_H_
+
+/// @file
+/// The weight-space (feature) form of a Gaussian process: Bayesian linear regression on an
+/// explicit feature vector phi in R^D, with P outputs that share one posterior factor.
+///
+/// Model, for output j = 1..P with scale s_j:
+///     y_j = phi^T w_j + e,   w_j ~ N(0, s_j^2 Lambda),   e ~ N(0, s_j^2 sigma_n^2 / v),
+/// where Lambda is diagonal and v is the sample's weight (1 unless forgetting or weighting).
+/// The posterior precision (in units of s_j^2 sigma_n^2) is
+///     A = sum_i v_i phi_i phi_i^T + sigma_n^2 Lambda^{-1},
+/// the same for every output; W = A^{-1} Phi^T V Y is the posterior mean of the weights,
+/// the latent predictive variance of output j is s_j^2 sigma_n^2 phi^T A^{-1} phi.
+///
+/// Representation. The model keeps the upper-triangular S with A^{-1} = S S^T (S = L^{-T}
+/// when A = L L^T), and W. Adding a sample is Carlson's triangular rank-one update of S,
+/// which yields the gain A'^{-1} phi in the same pass, so one step (update, keep W current,
+/// predict mean and variance at a new point) costs two passes over S. Removing a sample
+/// is the same update with negative weight, and is refused with kNotPositiveDefinite when it
+/// would leave A indefinite (phi^T A^{-1} phi * v >= 1 - kMinDowndateMargin).
+///
+/// Forgetting with factor lambda in (0, 1] multiplies every earlier sample's weight AND the
+/// prior precision by lambda before the new sample is added (A <- lambda A + v phi phi^T).
+/// After n such steps the model is exactly the batch posterior of the weighted samples with the
+/// prior variance Lambda / lambda^n; tests check this equivalence. Directions that the data
+/// stop exciting therefore grow in variance, as in every exponentially forgetting estimator.
+///
+/// Real-time contract: after construction, Update, Downdate, Predict and PredictWithVariance
+/// allocate no memory, take no lock and throw no exception; bad input returns kInvalidInput
+/// and leaves the model unchanged. A model is not safe for concurrent calls, including const
+/// ones (they share the model's scratch vectors).
+
+#include "structgp/core/status.h"
+#include "structgp/core/types.h"
+#include "structgp/model/sufficient_statistics.h"
+
+namespace structgp {
+
+/// Minimum 1 - v phi^T A^{-1} phi accepted by a downdate. Below it the downdated precision
+/// would have a condition number above ~1/kMinDowndateMargin relative to the current one, or
+/// be indefinite; the downdate is refused instead.
+inline constexpr double kMinDowndateMargin = 1e-10;
+
+/// Derivatives of the log marginal likelihood.
+struct EvidenceGradient {
+  /// d log p(Y) / d log Lambda_k, one per feature (size D). A block scale or a shape
+  /// parameter follows by the chain rule (see hyper/evidence.h).
+  Vector d_log_prior_variance;
+  /// d log p(Y) / d log sigma_n.
+  double d_log_noise_std = 0.0;
+  /// d log p(Y) / d log s_j, one per output (size P).
+  Vector d_log_output_scale;
+};
+
+class WeightSpaceGP {
+ public:
+  /// A model of num_features features and num_outputs outputs, at the prior given by
+  /// prior_variance (Lambda, size D, all > 0), noise_variance (sigma_n^2 > 0) and
+  /// output_scales (size P, all > 0; empty means all 1). Allocates all storage (O(D^2)).
+  /// Throws std::invalid_argument on bad sizes or values.
+  WeightSpaceGP(const Vector& prior_variance, double noise_variance, int num_outputs,
+                const Vector& output_scales = Vector());
+
+  int num_features() const { return static_cast<int>(prior_variance_.size()); }
+  int num_outputs() const { return static_cast<int>(weights_.cols()); }
+
+  /// Changes the prior and noise and returns the model to the prior (no data).
+  void Reset(const Vector& prior_variance, double noise_variance,
+             const Vector& output_scales = Vector());
+
+  /// Batch fit: replaces the posterior by the one given the samples in stats, with the
+  /// current prior. O(D^3). On failure (the precision is numerically not positive definite)
+  /// returns kNotPositiveDefinite and leaves the model unchanged. Throws on size mismatch.
+  Status Fit(const SufficientStatistics& stats);
+  /// Batch fit from features Phi (m x D) and targets Y (m x P).
+  Status Fit(const ConstMatrixRef& Phi, const ConstMatrixRef& Y);
+
+  /// Adds one sample (phi, y) with weight `weight` > 0, after forgetting with factor
+  /// `forgetting` in (0, 1]. O(D^2), allocation-free. kInvalidInput (model unchanged) on a
+  /// size mismatch, a non-finite value or a weight/forgetting out of range.
+  Status Update(const ConstVectorRef& phi, const ConstVectorRef& y, double forgetting = 1.0,
+                double weight = 1.0);
+
+  /// Removes a sample previously added with the given weight. kNotPositiveDefinite (model
+  /// unchanged) when that would lose definiteness; kInvalidInput on bad input.
+  Status Downdate(const ConstVectorRef& phi, const ConstVectorRef& y, double weight = 1.0);
+
+  /// Predictive mean at phi into mean (size P). O(D P). kInvalidInput on bad input.
+  Status Predict(const ConstVectorRef& phi, VectorRef mean) const;
+  /// Predictive mean and variances at phi: latent (of f) and noisy (of a new observation y),
+  /// each of size P. O(D^2). kInvalidInput on bad input.
+  Status PredictWithVariance(const ConstVectorRef& phi, VectorRef mean, VectorRef latent_variance,
+                             VectorRef noisy_variance) const;
+
+  /// One control-loop step: Update with (phi_update, y, forgetting), then predict at
+  /// phi_predict with the updated model. Exactly equal to calling the two in turn, but reads
+  /// S once less (the prediction is corrected by Sherman-Morrison). Pass empty latent_variance
+  /// and noisy_variance vectors (size 0) to skip the variance. On failure nothing is changed.
+  Status UpdateAndPredict(const ConstVectorRef& phi_update, const ConstVectorRef& y,
+                          const ConstVectorRef& phi_predict, VectorRef mean,
+                          VectorRef latent_variance, VectorRef noisy_variance,
+                          double forgetting = 1.0);
+
+  /// Log marginal likelihood log p(Y) of the (weighted) samples seen since the last Fit/Reset,
+  /// under the current prior (including the prior broadening caused by forgetting). O(D^2 P).
+  double LogMarginalLikelihood() const;
+  /// The same, with its derivatives. O(D^2 P).
+  double LogMarginalLikelihood(EvidenceGradient* gradient) const;
+
+  /// Posterior mean of the weights, D x P.
+  const Matrix& weights() const { return weights_; }
+  /// Upper-triangular S with A^{-1} = S S^T (only the upper triangle is meaningful).
+  const Matrix& covariance_factor() const { return factor_; }
+  /// Posterior covariance of the weights of output j: s_j^2 sigma_n^2 S S^T. O(D^3).
+  Matrix WeightCovariance(int output) const;
+  /// The prior variance currently in force: Lambda / lambda^n after n forgetting steps.
+  Vector effective_prior_variance() const;
+  const Vector& prior_variance() const { return prior_variance_; }
+  double noise_variance() const { return noise_variance_; }
+  const Vector& output_scales() const { return output_scales_; }
+  /// Sum of the weights of the samples in the posterior (m without forgetting).
+  double effective_count() const { return weight_sum_; }
+  /// Number of samples absorbed since the last Fit/Reset (Fit counts its samples).
+  long num_samples() const { return num_samples_; }
+
+ private:
+  // Applies a rank-one change of weight `weight` (negative for removal) after scaling the
+  // covariance by 1/forgetting. f = S^T phi / sqrt(forgetting) must be in work_f_.
+  void ApplyRankOne(const ConstVectorRef& phi, const ConstVectorRef& y, double forgetting,
+                    double weight, double alpha_n);
+  // work_f_ = S^T phi (and work_h_ = S^T phi2 when phi2 != nullptr), one pass over S.
+  void ProjectOntoFactor(const ConstVectorRef& phi, const ConstVectorRef* phi2) const;
+  bool InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) const;
+
+  Vector prior_variance_;  // Lambda (D)
+  double noise_variance_;  // sigma_n^2
+  Vector output_scales_;   // s (P)
+
+  Matrix factor_;   // S, D x D, upper triangle; A^{-1} = S S^T
+  Matrix weights_;  // W, D x P
+
+  // Data summaries for the evidence (all weighted): sum v y^2 per output, sum v, sum log v,
+  // the log of the factor by which the prior variance has been broadened by forgetting.
+  Vector y_squared_;
+  double weight_sum_ = 0.0;
+  double log_weight_sum_ = 0.0;
+  double log_prior_broadening_ = 0.0;
+  double sample_count_ = 0.0;
+  long num_samples_ = 0;
+
+  // Scratch, sized at construction.
+  mutable Vector work_f_;     // S^T phi
+  mutable Vector work_h_;     // S^T phi2
+  mutable Vector work_gain_;  // accumulates S f
+  mutable Vector work_err_;   // y - W^T phi (P)
+};
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_MODEL_WEIGHT_SPACE_GP_H_

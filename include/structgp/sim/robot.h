@@ -1,0 +1,142 @@
+#ifndef STRUCTGP_SIM_ROBOT_H_
+#define STRUCTGP_SIM_ROBOT_H_
+
+/// @file
+/// Simulated serial robots with revolute joints. The rigid-body dynamics are computed by
+/// Orocos KDL (recursive Newton-Euler for the inverse dynamics, KDL::ChainDynParam for the
+/// mass matrix, Coriolis/centrifugal and gravity terms); this header exposes Eigen types
+/// only, so users do not need KDL headers.
+///
+/// Conventions. Joint angles q are in rad, velocities qd in rad/s, accelerations qdd in
+/// rad/s^2, torques tau in N m; all joint vectors have num_joints() entries. The equation
+/// of motion is
+///     tau = M(q) qdd + C(q, qd) qd + G(q),
+/// with gravity of kStandardGravity m/s^2 along -z of the world frame. The kinematics use
+/// the standard (distal) Denavit-Hartenberg convention: the frame of link i sits at the far
+/// end of link i and joint i turns about the z axis of frame i-1.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace KDL {
+class Chain;
+}  // namespace KDL
+
+namespace structgp {
+namespace sim {
+
+/// Magnitude of the gravitational acceleration, m/s^2. Gravity points along -z of the world.
+inline constexpr double kStandardGravity = 9.81;
+
+/// Kinematic and inertial parameters of one link and the revolute joint that drives it.
+struct LinkParameters {
+  /// Standard DH parameters: link length a (m), twist alpha (rad), offset d (m) and the
+  /// constant joint-angle offset theta_offset (rad); the joint angle is q + theta_offset.
+  double a = 0.0;
+  double alpha = 0.0;
+  double d = 0.0;
+  double theta_offset = 0.0;
+  /// Mass, kg (>= 0).
+  double mass = 0.0;
+  /// Centre of mass in the link frame i, m.
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();
+  /// Rotational inertia about the centre of mass, in the axes of link frame i, kg m^2.
+  /// Symmetric positive semi-definite.
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+};
+
+/// The three rigid-body terms of the inverse dynamics at one state, each N m (size N).
+struct DynamicsComponents {
+  Eigen::VectorXd inertial;  ///< M(q) qdd
+  Eigen::VectorXd coriolis;  ///< C(q, qd) qd (Coriolis and centrifugal)
+  Eigen::VectorXd gravity;   ///< G(q)
+};
+
+/// An N-joint serial robot with revolute joints. Immutable after construction; copies are
+/// cheap (they share the model) and every method is const and safe to call concurrently.
+/// Each call builds its own small KDL solver workspace (a few allocations).
+class Robot {
+ public:
+  /// Builds the robot from one LinkParameters per joint (1 <= N). base_rotation is the
+  /// orientation of the DH base frame 0 in the world frame (gravity is -z of the world);
+  /// the identity makes joint 1 turn about the vertical. Throws std::invalid_argument on
+  /// an empty link list, a negative or non-finite mass, an inertia that is not symmetric
+  /// positive semi-definite, or a base_rotation that is not a rotation matrix.
+  Robot(std::string name, std::vector<LinkParameters> links,
+        const Eigen::Matrix3d& base_rotation = Eigen::Matrix3d::Identity());
+
+  const std::string& name() const;
+  int num_joints() const;
+  const std::vector<LinkParameters>& links() const;
+  const Eigen::Matrix3d& base_rotation() const;
+  /// Gravitational acceleration expressed in the DH base frame 0, m/s^2.
+  Eigen::Vector3d gravity_in_base() const;
+  /// The KDL chain (one segment per joint, frames in base frame 0). For users who want
+  /// other KDL solvers; they must include the KDL headers and link KDL themselves.
+  const KDL::Chain& chain() const;
+
+  /// tau = M(q) qdd + C(q, qd) qd + G(q), N m, by KDL's recursive Newton-Euler solver.
+  /// Throws std::invalid_argument when an argument does not have N entries.
+  Eigen::VectorXd InverseDynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                  const Eigen::VectorXd& qdd) const;
+
+  /// The three terms of the inverse dynamics, from KDL::ChainDynParam.
+  DynamicsComponents Components(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                const Eigen::VectorXd& qdd) const;
+
+  /// The joint-space mass matrix M(q), N x N, kg m^2 (symmetric positive definite whenever
+  /// every joint moves some mass).
+  Eigen::MatrixXd MassMatrix(const Eigen::VectorXd& q) const;
+
+  /// qdd solving M(q) qdd = tau - C(q, qd) qd - G(q), rad/s^2 (Cholesky of M). Throws
+  /// std::runtime_error when M(q) is not numerically positive definite, which happens only
+  /// for robots in which some joint moves no mass (never for the factories below).
+  Eigen::VectorXd ForwardDynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                  const Eigen::VectorXd& tau) const;
+
+ private:
+  struct Model;
+  std::shared_ptr<const Model> model_;
+};
+
+/// A robot with N = num_joints in [1, 7] and random parameters drawn from a generator
+/// seeded with `seed` (the same seed gives the same robot on every platform):
+/// - DH: a in [0.1, 0.5] m, d in [0, 0.3] m, theta_offset in [-pi/4, pi/4] rad, twist
+///   alpha alternating +pi/2, -pi/2, +pi/2, ...;
+/// - mass in [0.5, 5] kg; centre of mass in [-0.15, 0.15]^3 m of the link frame;
+/// - inertia of a solid box with random edge lengths in [0.04, 0.4] m, turned by a random
+///   rotation: symmetric positive definite, principal moments satisfying the triangle
+///   inequalities.
+/// The base is turned (base_rotation = rotation by pi/2 about x) so that joint 1 turns about a
+/// horizontal axis and gravity loads every joint, also for N = 1. Name "random<N>_seed<seed>".
+/// Throws std::invalid_argument unless 1 <= num_joints <= 7.
+Robot RandomRobot(int num_joints, std::uint64_t seed);
+
+/// A planar two-link arm moving in a vertical plane (both joint axes horizontal; q = 0
+/// stretches the arm horizontally, positive q lifts it). Link lengths 0.4 and 0.3 m, masses
+/// 2.0 and 1.0 kg, centres of mass at mid-link, inertias of solid rods of radius 3 cm.
+/// Name "two_link_arm".
+Robot TwoLinkArm();
+
+/// A three-joint spatial arm: a vertical waist joint followed by a horizontal shoulder and
+/// elbow (DH: d1 = 0.3 m, alpha1 = pi/2; a2 = 0.4 m; a3 = 0.3 m), link masses 3.0, 2.0 and
+/// 1.0 kg, centres of mass at mid-link, rod-like inertias. Name "three_link_arm".
+Robot ThreeLinkArm();
+
+/// The Unimation PUMA 560 with the standard-DH kinematic and link inertial parameters of
+/// P. Corke and B. Armstrong-Helouvry, "A search for consensus among model parameters
+/// reported for the PUMA 560 robot", Proc. IEEE ICRA 1994, pp. 1608-1613 (as also used by
+/// the Robotics Toolbox `puma560` model), which build on B. Armstrong, O. Khatib and
+/// J. Burdick, "The explicit dynamic model and inertial parameters of the PUMA 560 arm",
+/// Proc. IEEE ICRA 1986. Rigid links only: motor armature inertia, gear ratios and friction
+/// are not included. Name "puma560".
+Robot Puma560();
+
+}  // namespace sim
+}  // namespace structgp
+
+#endif  // STRUCTGP_SIM_ROBOT_H_

@@ -1,0 +1,313 @@
+#include "structgp/model/weight_space_gp.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+
+#include "model/factor_kernels.h"
+#include "structgp/core/validate.h"
+
+namespace structgp {
+namespace {
+
+constexpr double kLog2Pi = 1.8378770664093453;
+
+Vector ScalesOrOnes(const Vector& output_scales, int num_outputs) {
+  return output_scales.size() == 0 ? Vector::Ones(num_outputs) : output_scales;
+}
+
+void ValidatePrior(const Vector& prior_variance, double noise_variance, int num_outputs,
+                   const Vector& output_scales) {
+  if (prior_variance.size() == 0) {
+    throw std::invalid_argument("WeightSpaceGP: prior_variance is empty (need one per feature)");
+  }
+  if (num_outputs <= 0) {
+    throw std::invalid_argument("WeightSpaceGP: num_outputs must be positive, got " +
+                                std::to_string(num_outputs));
+  }
+  RequireFinite("WeightSpaceGP prior_variance", prior_variance);
+  if ((prior_variance.array() <= 0.0).any()) {
+    throw std::invalid_argument("WeightSpaceGP: prior_variance must be > 0 everywhere");
+  }
+  RequireInRange("WeightSpaceGP noise_variance", noise_variance, 0.0, HUGE_VAL);
+  if (output_scales.size() != 0) {
+    RequireSize("WeightSpaceGP output_scales", output_scales.size(), num_outputs);
+    RequireFinite("WeightSpaceGP output_scales", output_scales);
+    if ((output_scales.array() <= 0.0).any()) {
+      throw std::invalid_argument("WeightSpaceGP: output_scales must be > 0 everywhere");
+    }
+  }
+}
+
+}  // namespace
+
+WeightSpaceGP::WeightSpaceGP(const Vector& prior_variance, double noise_variance,
+                             int num_outputs, const Vector& output_scales)
+    : prior_variance_(prior_variance), noise_variance_(noise_variance) {
+  ValidatePrior(prior_variance, noise_variance, num_outputs, output_scales);
+  const Eigen::Index D = prior_variance.size();
+  factor_.setZero(D, D);
+  weights_.setZero(D, num_outputs);
+  y_squared_.setZero(num_outputs);
+  work_f_.setZero(D);
+  work_h_.setZero(D);
+  work_gain_.setZero(D);
+  work_err_.setZero(num_outputs);
+  Reset(prior_variance, noise_variance, output_scales);
+}
+
+void WeightSpaceGP::Reset(const Vector& prior_variance, double noise_variance,
+                          const Vector& output_scales) {
+  ValidatePrior(prior_variance, noise_variance, num_outputs(), output_scales);
+  RequireSize("WeightSpaceGP::Reset prior_variance", prior_variance.size(), num_features());
+  prior_variance_ = prior_variance;
+  noise_variance_ = noise_variance;
+  output_scales_ = ScalesOrOnes(output_scales, num_outputs());
+  // A = sigma_n^2 Lambda^{-1}  =>  S = diag(sqrt(Lambda) / sigma_n).
+  factor_.setZero();
+  factor_.diagonal() = (prior_variance_ / noise_variance_).cwiseSqrt();
+  weights_.setZero();
+  y_squared_.setZero();
+  weight_sum_ = 0.0;
+  log_weight_sum_ = 0.0;
+  log_prior_broadening_ = 0.0;
+  sample_count_ = 0.0;
+  num_samples_ = 0;
+}
+
+Status WeightSpaceGP::Fit(const ConstMatrixRef& Phi, const ConstMatrixRef& Y) {
+  SufficientStatistics stats(num_features(), num_outputs());
+  stats.Accumulate(Phi, Y);
+  return Fit(stats);
+}
+
+Status WeightSpaceGP::Fit(const SufficientStatistics& stats) {
+  RequireSize("WeightSpaceGP::Fit statistics features", stats.num_features(), num_features());
+  RequireSize("WeightSpaceGP::Fit statistics outputs", stats.num_outputs(), num_outputs());
+  const Eigen::Index D = num_features();
+  Matrix A = stats.gram.triangularView<Eigen::Lower>();
+  A.diagonal() += noise_variance_ * prior_variance_.cwiseInverse();
+  Eigen::LLT<Matrix, Eigen::Lower> llt(A);
+  if (llt.info() != Eigen::Success || !llt.matrixLLT().diagonal().allFinite() ||
+      (llt.matrixLLT().diagonal().array() <= 0.0).any()) {
+    return Status::kNotPositiveDefinite;
+  }
+  // S = L^{-T}: invert the triangular factor, then transpose into the upper triangle.
+  Matrix l_inv = Matrix::Identity(D, D);
+  llt.matrixL().solveInPlace(l_inv);
+  Matrix weights = llt.solve(stats.cross);
+  if (!l_inv.allFinite() || !weights.allFinite()) return Status::kNotPositiveDefinite;
+  factor_ = l_inv.transpose();
+  factor_.triangularView<Eigen::StrictlyLower>().setZero();
+  weights_ = std::move(weights);
+  y_squared_ = stats.y_squared;
+  weight_sum_ = stats.count;
+  log_weight_sum_ = 0.0;
+  log_prior_broadening_ = 0.0;
+  sample_count_ = stats.count;
+  num_samples_ = static_cast<long>(stats.count);
+  return Status::kOk;
+}
+
+bool WeightSpaceGP::InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) const {
+  return phi.size() == num_features() && y.size() == num_outputs() && phi.allFinite() &&
+         y.allFinite();
+}
+
+void WeightSpaceGP::ProjectOntoFactor(const ConstVectorRef& phi, const ConstVectorRef* phi2) const {
+  const int D = num_features();
+  if (phi2 == nullptr) {
+    internal::UpperTransposeTimes(factor_.data(), D, D, phi.data(), work_f_.data());
+  } else {
+    internal::UpperTransposeTimes2(factor_.data(), D, D, phi.data(), phi2->data(),
+                                   work_f_.data(), work_h_.data());
+  }
+}
+
+void WeightSpaceGP::ApplyRankOne(const ConstVectorRef& phi, const ConstVectorRef& y,
+                                 double forgetting, double weight, double alpha_n) {
+  const int D = num_features();
+  const double scale = forgetting == 1.0 ? 1.0 : 1.0 / std::sqrt(forgetting);
+  const double r = 1.0 / weight;  // negative weight: removal
+  // Prediction error with the weights before the change.
+  work_err_.noalias() = y - weights_.transpose() * phi;
+  internal::CarlsonRankOne(factor_.data(), D, D, work_f_.data(), r, scale, work_gain_.data());
+  // W' = W + (A'^{-1} phi) e^T with A'^{-1} phi = gain / alpha_n.
+  work_gain_ *= 1.0 / alpha_n;
+  weights_.noalias() += work_gain_ * work_err_.transpose();
+
+  // Evidence bookkeeping (see LogMarginalLikelihood).
+  const double v = std::abs(weight);
+  const double sign = weight > 0 ? 1.0 : -1.0;
+  if (forgetting != 1.0) {
+    const double log_lambda = std::log(forgetting);
+    y_squared_ *= forgetting;
+    weight_sum_ *= forgetting;
+    log_weight_sum_ += sample_count_ * log_lambda;
+    log_prior_broadening_ -= log_lambda;
+  }
+  y_squared_ += (sign * v) * y.cwiseAbs2();
+  weight_sum_ += sign * v;
+  log_weight_sum_ += sign * std::log(v);
+  sample_count_ += sign;
+  num_samples_ += weight > 0 ? 1 : -1;
+}
+
+Status WeightSpaceGP::Update(const ConstVectorRef& phi, const ConstVectorRef& y,
+                             double forgetting, double weight) {
+  if (!InputOk(phi, y) || !(forgetting > 0.0 && forgetting <= 1.0) ||
+      !(weight > 0.0 && std::isfinite(weight))) {
+    return Status::kInvalidInput;
+  }
+  ProjectOntoFactor(phi, nullptr);
+  if (forgetting != 1.0) work_f_ *= 1.0 / std::sqrt(forgetting);
+  const double alpha_n = 1.0 / weight + work_f_.squaredNorm();
+  if (!std::isfinite(alpha_n)) return Status::kInvalidInput;
+  ApplyRankOne(phi, y, forgetting, weight, alpha_n);
+  return Status::kOk;
+}
+
+Status WeightSpaceGP::Downdate(const ConstVectorRef& phi, const ConstVectorRef& y,
+                               double weight) {
+  if (!InputOk(phi, y) || !(weight > 0.0 && std::isfinite(weight))) {
+    return Status::kInvalidInput;
+  }
+  ProjectOntoFactor(phi, nullptr);
+  // Removing the sample keeps A positive definite iff 1 - weight * phi^T A^{-1} phi > 0.
+  const double margin = 1.0 - weight * work_f_.squaredNorm();
+  if (!(margin > kMinDowndateMargin)) return Status::kNotPositiveDefinite;
+  const double alpha_n = -margin / weight;  // = -1/weight + f^T f
+  ApplyRankOne(phi, y, 1.0, -weight, alpha_n);
+  return Status::kOk;
+}
+
+Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean) const {
+  if (phi.size() != num_features() || mean.size() != num_outputs() || !phi.allFinite()) {
+    return Status::kInvalidInput;
+  }
+  mean.noalias() = weights_.transpose() * phi;
+  return Status::kOk;
+}
+
+Status WeightSpaceGP::PredictWithVariance(const ConstVectorRef& phi, VectorRef mean,
+                                          VectorRef latent_variance,
+                                          VectorRef noisy_variance) const {
+  if (phi.size() != num_features() || mean.size() != num_outputs() ||
+      latent_variance.size() != num_outputs() || noisy_variance.size() != num_outputs() ||
+      !phi.allFinite()) {
+    return Status::kInvalidInput;
+  }
+  mean.noalias() = weights_.transpose() * phi;
+  ProjectOntoFactor(phi, nullptr);
+  const double quad = work_f_.squaredNorm();  // phi^T A^{-1} phi >= 0 by construction
+  latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
+  noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
+  return Status::kOk;
+}
+
+Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const ConstVectorRef& y,
+                                       const ConstVectorRef& phi_predict, VectorRef mean,
+                                       VectorRef latent_variance, VectorRef noisy_variance,
+                                       double forgetting) {
+  const bool want_variance = latent_variance.size() != 0 || noisy_variance.size() != 0;
+  if (!InputOk(phi_update, y) || phi_predict.size() != num_features() ||
+      !phi_predict.allFinite() || mean.size() != num_outputs() ||
+      (want_variance && (latent_variance.size() != num_outputs() ||
+                         noisy_variance.size() != num_outputs())) ||
+      !(forgetting > 0.0 && forgetting <= 1.0)) {
+    return Status::kInvalidInput;
+  }
+  double quad = 0.0;
+  if (want_variance) {
+    ProjectOntoFactor(phi_update, &phi_predict);
+  } else {
+    ProjectOntoFactor(phi_update, nullptr);
+  }
+  if (forgetting != 1.0) {
+    const double s = 1.0 / std::sqrt(forgetting);
+    work_f_ *= s;
+    if (want_variance) work_h_ *= s;
+  }
+  const double alpha_n = 1.0 + work_f_.squaredNorm();
+  if (!std::isfinite(alpha_n)) return Status::kInvalidInput;
+  if (want_variance) {
+    // phi_p^T A'^{-1} phi_p = h^T h - (h^T f)^2 / alpha_n  (Sherman-Morrison), clamped at 0
+    // against rounding.
+    const double cross = work_h_.dot(work_f_);
+    quad = std::max(0.0, work_h_.squaredNorm() - cross * cross / alpha_n);
+  }
+  ApplyRankOne(phi_update, y, forgetting, 1.0, alpha_n);
+  mean.noalias() = weights_.transpose() * phi_predict;
+  if (want_variance) {
+    latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
+    noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
+  }
+  return Status::kOk;
+}
+
+Vector WeightSpaceGP::effective_prior_variance() const {
+  return prior_variance_ * std::exp(log_prior_broadening_);
+}
+
+Matrix WeightSpaceGP::WeightCovariance(int output) const {
+  if (output < 0 || output >= num_outputs()) {
+    throw std::invalid_argument("WeightSpaceGP::WeightCovariance: output " +
+                                std::to_string(output) + " out of range [0, " +
+                                std::to_string(num_outputs()) + ")");
+  }
+  const auto S = factor_.triangularView<Eigen::Upper>();
+  Matrix cov = S * factor_.transpose();
+  return cov * (noise_variance_ * output_scales_[output] * output_scales_[output]);
+}
+
+double WeightSpaceGP::LogMarginalLikelihood() const { return LogMarginalLikelihood(nullptr); }
+
+// With C = Phi Lambda_e Phi^T + sigma^2 V^{-1} (weights V, effective prior Lambda_e) and
+// A = Phi^T V Phi + sigma^2 Lambda_e^{-1}:
+//   y^T C^{-1} y = (y^T V y - w^T A w) / sigma^2,
+//   log|C| = log|A| + log|Lambda_e| + (m - D) log sigma^2 - sum log v_i,
+// and output j (scale s_j) adds m log s_j^2 and divides the quadratic form by s_j^2.
+// Derivations of the gradient are in docs/derivations.md.
+double WeightSpaceGP::LogMarginalLikelihood(EvidenceGradient* gradient) const {
+  const double D = num_features();
+  const double m = sample_count_;
+  const double s2n = noise_variance_;
+  const Vector lambda_e = effective_prior_variance();
+  const auto S = factor_.triangularView<Eigen::Upper>();
+  const Matrix z = S.solve(weights_);  // S^{-1} W, so ||z_j||^2 = w_j^T A w_j
+  const double log_det_a = -2.0 * factor_.diagonal().array().log().sum();
+  const double log_det_c = log_det_a + lambda_e.array().log().sum() + (m - D) * std::log(s2n) -
+                           log_weight_sum_;
+  double lml = 0.0;
+  Vector quad(num_outputs());
+  for (int j = 0; j < num_outputs(); ++j) {
+    const double s2 = output_scales_[j] * output_scales_[j];
+    const double wAw = z.col(j).squaredNorm();
+    quad[j] = (y_squared_[j] - wAw) / s2n;  // y^T C^{-1} y for unit scale
+    lml += -0.5 * quad[j] / s2 - 0.5 * (log_det_c + m * std::log(s2)) - 0.5 * m * kLog2Pi;
+  }
+  if (gradient != nullptr) {
+    const Vector diag_a_inv = factor_.rowwise().squaredNorm();  // lower part is zero
+    const double tr_a_inv_lambda_inv = diag_a_inv.cwiseQuotient(lambda_e).sum();
+    gradient->d_log_prior_variance.setZero(num_features());
+    gradient->d_log_output_scale.setZero(num_outputs());
+    double d_noise_var = 0.0;
+    const double tr_c_inv = (m - D + s2n * tr_a_inv_lambda_inv) / s2n;
+    for (int j = 0; j < num_outputs(); ++j) {
+      const double s2 = output_scales_[j] * output_scales_[j];
+      const auto w = weights_.col(j);
+      gradient->d_log_prior_variance.array() +=
+          0.5 * (w.array().square() / (s2 * lambda_e.array()) - 1.0 +
+                 s2n * diag_a_inv.array() / lambda_e.array());
+      const double w_lambda_w = w.cwiseAbs2().cwiseQuotient(lambda_e).sum();
+      const double residual_sq = y_squared_[j] - z.col(j).squaredNorm() - s2n * w_lambda_w;
+      d_noise_var += 0.5 * (residual_sq / (s2n * s2n * s2) - tr_c_inv);
+      gradient->d_log_output_scale[j] = quad[j] / s2 - m;
+    }
+    gradient->d_log_noise_std = 2.0 * s2n * d_noise_var;
+  }
+  return lml;
+}
+
+}  // namespace structgp
