@@ -2,28 +2,28 @@
 #define STRUCTGP_SRC_MODEL_FACTOR_KERNELS_H_
 
 // Hot loops over an upper-triangular factor S (column-major, leading dimension ld; only the
-// upper triangle is read or written). Written as plain loops so that the compiler can build
-// an AVX2/FMA clone next to the baseline one (chosen at load time), without imposing
-// -march flags on anyone.
+// upper triangle is read or written). Written as plain loops, four columns at a time, so that
+// the compiler builds an AVX2/FMA clone next to the baseline one (chosen at load time) without
+// imposing -march flags on anyone. Each function makes exactly one pass over S.
 
 namespace structgp {
 namespace internal {
 
-// f = S^T x, one pass over S. O(D^2 / 2).
-void UpperTransposeTimes(const double* S, int ld, int D, const double* x, double* f);
+// y1 = S^T x1 and, when x2 is not null, y2 = S^T x2. O(D^2 / 2), reads S once.
+void UpperTransposeTimes(const double* S, int ld, int D, const double* x1, const double* x2,
+                         double* y1, double* y2);
 
-// f1 = S^T x1 and f2 = S^T x2 in one pass over S.
-void UpperTransposeTimes2(const double* S, int ld, int D, const double* x1, const double* x2,
-                          double* f1, double* f2);
+// Coefficients of Carlson's triangular rank-one modification (see factor_kernels.cc) for
+// f = scale * S^T phi and observation variance r (r < 0 removes an observation); a, b, c are
+// arrays of size D.
+void CarlsonCoefficients(const double* f, int D, double r, double scale, double* a, double* b,
+                         double* c);
 
-// Carlson's triangular rank-one modification of a covariance square root, with a uniform
-// scaling folded in. On entry S S^T = P and f = scale * S^T phi. On exit
-//     S' S'^T = P_s - P_s phi phi^T P_s / alpha,   P_s = scale^2 P,   alpha = r + f^T f,
-// and gain = P_s phi (so P' phi = gain / alpha). r > 0 adds an observation of variance r,
-// r < 0 removes one of variance -r; the caller checks that alpha has the sign of r.
-// One pass over S. O(D^2 / 2).
-void CarlsonRankOne(double* S, int ld, int D, const double* f, double r, double scale,
-                    double* gain);
+// Applies the modification: on exit S' S'^T = P_s - P_s phi phi^T P_s / alpha with
+// P_s = scale^2 S S^T and alpha = r + f^T f, and gain = P_s phi. When x1 is not null it also
+// returns y1 = S'^T x1 and y2 = S'^T x2 (x2 may equal x1), in the same pass.
+void CarlsonRankOne(double* S, int ld, int D, const double* a, const double* b, const double* c,
+                    double* gain, const double* x1, const double* x2, double* y1, double* y2);
 
 }  // namespace internal
 }  // namespace structgp

@@ -54,6 +54,10 @@ WeightSpaceGP::WeightSpaceGP(const Vector& prior_variance, double noise_variance
   work_h_.setZero(D);
   work_gain_.setZero(D);
   work_err_.setZero(num_outputs);
+  staged_a_.setZero(D);
+  staged_b_.setZero(D);
+  staged_c_.setZero(D);
+  staged_err_.setZero(num_outputs);
   Reset(prior_variance, noise_variance, output_scales);
 }
 
@@ -65,6 +69,7 @@ void WeightSpaceGP::Reset(const Vector& prior_variance, double noise_variance,
   noise_variance_ = noise_variance;
   output_scales_ = ScalesOrOnes(output_scales, num_outputs());
   // A = sigma_n^2 Lambda^{-1}  =>  S = diag(sqrt(Lambda) / sigma_n).
+  staged_ = false;
   factor_.setZero();
   factor_.diagonal() = (prior_variance_ / noise_variance_).cwiseSqrt();
   weights_.setZero();
@@ -98,6 +103,7 @@ Status WeightSpaceGP::Fit(const SufficientStatistics& stats) {
   llt.matrixL().solveInPlace(l_inv);
   Matrix weights = llt.solve(stats.cross);
   if (!l_inv.allFinite() || !weights.allFinite()) return Status::kNotPositiveDefinite;
+  staged_ = false;
   factor_ = l_inv.transpose();
   factor_.triangularView<Eigen::StrictlyLower>().setZero();
   weights_ = std::move(weights);
@@ -115,31 +121,35 @@ bool WeightSpaceGP::InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) 
          y.allFinite();
 }
 
-void WeightSpaceGP::ProjectOntoFactor(const ConstVectorRef& phi, const ConstVectorRef* phi2) const {
+void WeightSpaceGP::Commit(const double* x1, const double* x2, double* y1,
+                           double* y2) const {
   const int D = num_features();
-  if (phi2 == nullptr) {
-    internal::UpperTransposeTimes(factor_.data(), D, D, phi.data(), work_f_.data());
-  } else {
-    internal::UpperTransposeTimes2(factor_.data(), D, D, phi.data(), phi2->data(),
-                                   work_f_.data(), work_h_.data());
+  if (!staged_) {
+    if (x1 != nullptr) internal::UpperTransposeTimes(factor_.data(), D, D, x1, x2, y1, y2);
+    return;
   }
+  // The fused pass takes two right-hand sides; with one, x1 is used twice.
+  if (x1 != nullptr && x2 == nullptr) {
+    x2 = x1;
+    y2 = (y1 == work_h_.data()) ? work_f_.data() : work_h_.data();
+  }
+  internal::CarlsonRankOne(factor_.data(), D, D, staged_a_.data(), staged_b_.data(),
+                           staged_c_.data(), work_gain_.data(), x1, x2, y1, y2);
+  // W' = W + (A'^{-1} phi) e^T with A'^{-1} phi = gain / alpha.
+  weights_.noalias() += (staged_inv_alpha_ * work_gain_) * staged_err_.transpose();
+  staged_ = false;
 }
 
-void WeightSpaceGP::ApplyRankOne(const ConstVectorRef& phi, const ConstVectorRef& y,
-                                 double forgetting, double weight, double alpha_n) {
-  const int D = num_features();
-  const double scale = forgetting == 1.0 ? 1.0 : 1.0 / std::sqrt(forgetting);
-  const double r = 1.0 / weight;  // negative weight: removal
-  // Prediction error with the weights before the change.
-  work_err_.noalias() = y - weights_.transpose() * phi;
-  internal::CarlsonRankOne(factor_.data(), D, D, work_f_.data(), r, scale, work_gain_.data());
-  // W' = W + (A'^{-1} phi) e^T with A'^{-1} phi = gain / alpha_n.
-  work_gain_ *= 1.0 / alpha_n;
-  weights_.noalias() += work_gain_ * work_err_.transpose();
+void WeightSpaceGP::Stage(double r, double scale, double alpha) const {
+  internal::CarlsonCoefficients(work_f_.data(), num_features(), r, scale, staged_a_.data(),
+                                staged_b_.data(), staged_c_.data());
+  staged_inv_alpha_ = 1.0 / alpha;
+  staged_err_ = work_err_;
+  staged_ = true;
+}
 
-  // Evidence bookkeeping (see LogMarginalLikelihood).
-  const double v = std::abs(weight);
-  const double sign = weight > 0 ? 1.0 : -1.0;
+void WeightSpaceGP::Account(const ConstVectorRef& y, double forgetting, double weight,
+                            double sign) {
   if (forgetting != 1.0) {
     const double log_lambda = std::log(forgetting);
     y_squared_ *= forgetting;
@@ -147,11 +157,11 @@ void WeightSpaceGP::ApplyRankOne(const ConstVectorRef& phi, const ConstVectorRef
     log_weight_sum_ += sample_count_ * log_lambda;
     log_prior_broadening_ -= log_lambda;
   }
-  y_squared_ += (sign * v) * y.cwiseAbs2();
-  weight_sum_ += sign * v;
-  log_weight_sum_ += sign * std::log(v);
+  y_squared_ += (sign * weight) * y.cwiseAbs2();
+  weight_sum_ += sign * weight;
+  log_weight_sum_ += sign * std::log(weight);
   sample_count_ += sign;
-  num_samples_ += weight > 0 ? 1 : -1;
+  num_samples_ += sign > 0 ? 1 : -1;
 }
 
 Status WeightSpaceGP::Update(const ConstVectorRef& phi, const ConstVectorRef& y,
@@ -160,11 +170,15 @@ Status WeightSpaceGP::Update(const ConstVectorRef& phi, const ConstVectorRef& y,
       !(weight > 0.0 && std::isfinite(weight))) {
     return Status::kInvalidInput;
   }
-  ProjectOntoFactor(phi, nullptr);
-  if (forgetting != 1.0) work_f_ *= 1.0 / std::sqrt(forgetting);
-  const double alpha_n = 1.0 / weight + work_f_.squaredNorm();
-  if (!std::isfinite(alpha_n)) return Status::kInvalidInput;
-  ApplyRankOne(phi, y, forgetting, weight, alpha_n);
+  Commit(phi.data(), nullptr, work_f_.data(), nullptr);
+  const double scale = forgetting == 1.0 ? 1.0 : 1.0 / std::sqrt(forgetting);
+  work_f_ *= scale;
+  const double alpha = 1.0 / weight + work_f_.squaredNorm();
+  if (!std::isfinite(alpha)) return Status::kNotPositiveDefinite;
+  work_err_.noalias() = y - weights_.transpose() * phi;
+  Stage(1.0 / weight, scale, alpha);
+  Commit(nullptr, nullptr, nullptr, nullptr);
+  Account(y, forgetting, weight, +1.0);
   return Status::kOk;
 }
 
@@ -173,12 +187,14 @@ Status WeightSpaceGP::Downdate(const ConstVectorRef& phi, const ConstVectorRef& 
   if (!InputOk(phi, y) || !(weight > 0.0 && std::isfinite(weight))) {
     return Status::kInvalidInput;
   }
-  ProjectOntoFactor(phi, nullptr);
+  Commit(phi.data(), nullptr, work_f_.data(), nullptr);
   // Removing the sample keeps A positive definite iff 1 - weight * phi^T A^{-1} phi > 0.
   const double margin = 1.0 - weight * work_f_.squaredNorm();
   if (!(margin > kMinDowndateMargin)) return Status::kNotPositiveDefinite;
-  const double alpha_n = -margin / weight;  // = -1/weight + f^T f
-  ApplyRankOne(phi, y, 1.0, -weight, alpha_n);
+  work_err_.noalias() = y - weights_.transpose() * phi;
+  Stage(-1.0 / weight, 1.0, -margin / weight);  // alpha = -1/weight + f^T f
+  Commit(nullptr, nullptr, nullptr, nullptr);
+  Account(y, 1.0, weight, -1.0);
   return Status::kOk;
 }
 
@@ -186,6 +202,7 @@ Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean) const {
   if (phi.size() != num_features() || mean.size() != num_outputs() || !phi.allFinite()) {
     return Status::kInvalidInput;
   }
+  Commit(nullptr, nullptr, nullptr, nullptr);
   mean.noalias() = weights_.transpose() * phi;
   return Status::kOk;
 }
@@ -198,8 +215,8 @@ Status WeightSpaceGP::PredictWithVariance(const ConstVectorRef& phi, VectorRef m
       !phi.allFinite()) {
     return Status::kInvalidInput;
   }
+  Commit(phi.data(), nullptr, work_f_.data(), nullptr);
   mean.noalias() = weights_.transpose() * phi;
-  ProjectOntoFactor(phi, nullptr);
   const double quad = work_f_.squaredNorm();  // phi^T A^{-1} phi >= 0 by construction
   latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
   noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
@@ -218,32 +235,39 @@ Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const C
       !(forgetting > 0.0 && forgetting <= 1.0)) {
     return Status::kInvalidInput;
   }
-  double quad = 0.0;
-  if (want_variance) {
-    ProjectOntoFactor(phi_update, &phi_predict);
-  } else {
-    ProjectOntoFactor(phi_update, nullptr);
+  // One pass: apply the previous step's staged change and project both new vectors.
+  Commit(phi_update.data(), phi_predict.data(), work_f_.data(), work_h_.data());
+  const double scale = forgetting == 1.0 ? 1.0 : 1.0 / std::sqrt(forgetting);
+  if (scale != 1.0) {
+    work_f_ *= scale;
+    work_h_ *= scale;
   }
-  if (forgetting != 1.0) {
-    const double s = 1.0 / std::sqrt(forgetting);
-    work_f_ *= s;
-    if (want_variance) work_h_ *= s;
-  }
-  const double alpha_n = 1.0 + work_f_.squaredNorm();
-  if (!std::isfinite(alpha_n)) return Status::kInvalidInput;
-  if (want_variance) {
-    // phi_p^T A'^{-1} phi_p = h^T h - (h^T f)^2 / alpha_n  (Sherman-Morrison), clamped at 0
-    // against rounding.
-    const double cross = work_h_.dot(work_f_);
-    quad = std::max(0.0, work_h_.squaredNorm() - cross * cross / alpha_n);
-  }
-  ApplyRankOne(phi_update, y, forgetting, 1.0, alpha_n);
+  const double alpha = 1.0 + work_f_.squaredNorm();
+  if (!std::isfinite(alpha)) return Status::kNotPositiveDefinite;
+  work_err_.noalias() = y - weights_.transpose() * phi_update;
+  // With the new sample staged, A'^{-1} = P_s - P_s phi phi^T P_s / alpha (Sherman-Morrison):
+  //   mean(phi_p) = W^T phi_p + (h^T f / alpha) e,  phi_p^T A'^{-1} phi_p = h^T h - (h^T f)^2 / alpha.
+  const double cross = work_h_.dot(work_f_);
   mean.noalias() = weights_.transpose() * phi_predict;
+  mean += (cross / alpha) * work_err_;
   if (want_variance) {
+    const double quad = std::max(0.0, work_h_.squaredNorm() - cross * cross / alpha);
     latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
     noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
   }
+  Stage(1.0, scale, alpha);
+  Account(y, forgetting, 1.0, +1.0);
   return Status::kOk;
+}
+
+const Matrix& WeightSpaceGP::weights() const {
+  Commit(nullptr, nullptr, nullptr, nullptr);
+  return weights_;
+}
+
+const Matrix& WeightSpaceGP::covariance_factor() const {
+  Commit(nullptr, nullptr, nullptr, nullptr);
+  return factor_;
 }
 
 Vector WeightSpaceGP::effective_prior_variance() const {
@@ -251,6 +275,7 @@ Vector WeightSpaceGP::effective_prior_variance() const {
 }
 
 Matrix WeightSpaceGP::WeightCovariance(int output) const {
+  Commit(nullptr, nullptr, nullptr, nullptr);
   if (output < 0 || output >= num_outputs()) {
     throw std::invalid_argument("WeightSpaceGP::WeightCovariance: output " +
                                 std::to_string(output) + " out of range [0, " +
@@ -270,6 +295,7 @@ double WeightSpaceGP::LogMarginalLikelihood() const { return LogMarginalLikeliho
 // and output j (scale s_j) adds m log s_j^2 and divides the quadratic form by s_j^2.
 // Derivations of the gradient are in docs/derivations.md.
 double WeightSpaceGP::LogMarginalLikelihood(EvidenceGradient* gradient) const {
+  Commit(nullptr, nullptr, nullptr, nullptr);
   const double D = num_features();
   const double m = sample_count_;
   const double s2n = noise_variance_;

@@ -15,8 +15,11 @@
 ///
 /// Representation. The model keeps the upper-triangular S with A^{-1} = S S^T (S = L^{-T}
 /// when A = L L^T), and W. Adding a sample is Carlson's triangular rank-one update of S,
-/// which yields the gain A'^{-1} phi in the same pass, so one step (update, keep W current,
-/// predict mean and variance at a new point) costs two passes over S. Removing a sample
+/// which yields the gain A'^{-1} phi in the same pass. UpdateAndPredict goes further: it
+/// stages the update of S and applies it in the same pass that projects the next sample, so
+/// a control-loop step (update, keep W current, predict mean and variance at the next state)
+/// reads and writes S once. Every result is exact at all times: a staged change is applied
+/// before anything reads S or W. Removing a sample
 /// is the same update with negative weight, and is refused with kNotPositiveDefinite when it
 /// would leave A indefinite (phi^T A^{-1} phi * v >= 1 - kMinDowndateMargin).
 ///
@@ -109,9 +112,9 @@ class WeightSpaceGP {
   double LogMarginalLikelihood(EvidenceGradient* gradient) const;
 
   /// Posterior mean of the weights, D x P.
-  const Matrix& weights() const { return weights_; }
-  /// Upper-triangular S with A^{-1} = S S^T (only the upper triangle is meaningful).
-  const Matrix& covariance_factor() const { return factor_; }
+  const Matrix& weights() const;
+  /// Upper-triangular S with A^{-1} = S S^T (the strictly lower part is zero).
+  const Matrix& covariance_factor() const;
   /// Posterior covariance of the weights of output j: s_j^2 sigma_n^2 S S^T. O(D^3).
   Matrix WeightCovariance(int output) const;
   /// The prior variance currently in force: Lambda / lambda^n after n forgetting steps.
@@ -125,20 +128,25 @@ class WeightSpaceGP {
   long num_samples() const { return num_samples_; }
 
  private:
-  // Applies a rank-one change of weight `weight` (negative for removal) after scaling the
-  // covariance by 1/forgetting. f = S^T phi / sqrt(forgetting) must be in work_f_.
-  void ApplyRankOne(const ConstVectorRef& phi, const ConstVectorRef& y, double forgetting,
-                    double weight, double alpha_n);
-  // work_f_ = S^T phi (and work_h_ = S^T phi2 when phi2 != nullptr), one pass over S.
-  void ProjectOntoFactor(const ConstVectorRef& phi, const ConstVectorRef* phi2) const;
+  // Brings S and W up to date with the sample deferred by UpdateAndPredict, if any, in one
+  // pass over S; in the same pass y1 = S'^T x1 and y2 = S'^T x2 when x1 is not null (x2 may be
+  // null: then only y1). Without a deferred sample it is a plain projection.
+  void Commit(const double* x1, const double* x2, double* y1, double* y2) const;
+  // Prepares the rank-one change for f = work_f_ (already scaled), observation variance r and
+  // covariance scale `scale`, with prediction error work_err_; Commit applies it.
+  void Stage(double r, double scale, double alpha) const;
+  // Evidence bookkeeping of one added (sign +1) or removed (sign -1) sample.
+  void Account(const ConstVectorRef& y, double forgetting, double weight, double sign);
   bool InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) const;
 
   Vector prior_variance_;  // Lambda (D)
   double noise_variance_;  // sigma_n^2
   Vector output_scales_;   // s (P)
 
-  Matrix factor_;   // S, D x D, upper triangle; A^{-1} = S S^T
-  Matrix weights_;  // W, D x P
+  // S (D x D, upper triangle; A^{-1} = S S^T) and W (D x P). Mutable because a staged
+  // rank-one change is applied lazily, at the next call that reads them.
+  mutable Matrix factor_;
+  mutable Matrix weights_;
 
   // Data summaries for the evidence (all weighted): sum v y^2 per output, sum v, sum log v,
   // the log of the factor by which the prior variance has been broadened by forgetting.
@@ -149,10 +157,16 @@ class WeightSpaceGP {
   double sample_count_ = 0.0;
   long num_samples_ = 0;
 
+  // The staged change: Carlson coefficients, 1 / alpha and the prediction error.
+  mutable bool staged_ = false;
+  mutable Vector staged_a_, staged_b_, staged_c_;
+  mutable double staged_inv_alpha_ = 0.0;
+  mutable Vector staged_err_;
+
   // Scratch, sized at construction.
   mutable Vector work_f_;     // S^T phi
   mutable Vector work_h_;     // S^T phi2
-  mutable Vector work_gain_;  // accumulates S f
+  mutable Vector work_gain_;  // scale * S f
   mutable Vector work_err_;   // y - W^T phi (P)
 };
 
