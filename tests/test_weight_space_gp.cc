@@ -238,6 +238,54 @@ TEST(WeightSpaceGP, UpdateAndPredictEqualsUpdateThenPredict) {
   EXPECT_LT(RelDiff(a.weights(), b.weights()), 1e-12);
 }
 
+// The staged update of UpdateAndPredict is invisible: whatever call follows it (predict,
+// accessors, evidence, update, downdate, another step) sees the exact posterior.
+TEST(WeightSpaceGP, StagedUpdateIsExactUnderAnyInterleaving) {
+  const int D = 13, P = 3, n = 400;  // D not a multiple of 4: exercises the tail columns
+  const unsigned seed = 55;
+  const Problem p = MakeProblem(n, D, P, seed);
+  WeightSpaceGP staged(p.lambda, p.noise_variance, P, p.scales);
+  WeightSpaceGP plain(p.lambda, p.noise_variance, P, p.scales);
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> op(0, 5);
+  Vector m1(P), l1(P), v1(P), m2(P), l2(P), v2(P);
+  for (int i = 0; i + 1 < n; ++i) {
+    SCOPED_TRACE("step " + std::to_string(i) + ", seed " + std::to_string(seed));
+    const Vector phi = p.Phi.row(i).transpose(), y = p.Y.row(i).transpose();
+    const Vector next = p.Phi.row(i + 1).transpose();
+    ASSERT_EQ(staged.UpdateAndPredict(phi, y, next, m1, l1, v1), Status::kOk);
+    ASSERT_EQ(plain.Update(phi, y), Status::kOk);
+    ASSERT_EQ(plain.PredictWithVariance(next, m2, l2, v2), Status::kOk);
+    ASSERT_LT(RelDiff(m1, m2), 1e-11);
+    ASSERT_LT(RelDiff(l1, l2), 1e-9);
+    switch (op(rng)) {
+      case 0:
+        staged.Predict(next, m1);
+        plain.Predict(next, m2);
+        ASSERT_LT(RelDiff(m1, m2), 1e-11);
+        break;
+      case 1:
+        ASSERT_LT(RelDiff(staged.weights(), plain.weights()), 1e-11);
+        ASSERT_LT(RelDiff(staged.covariance_factor(), plain.covariance_factor()), 1e-11);
+        break;
+      case 2:
+        ASSERT_NEAR(staged.LogMarginalLikelihood(), plain.LogMarginalLikelihood(),
+                    1e-10 * std::abs(plain.LogMarginalLikelihood()));
+        break;
+      case 3:
+        ASSERT_EQ(staged.Update(next, y, 0.99), Status::kOk);
+        ASSERT_EQ(plain.Update(next, y, 0.99), Status::kOk);
+        break;
+      case 4:
+        ASSERT_EQ(staged.Downdate(phi, y), plain.Downdate(phi, y));
+        break;
+      default:
+        break;  // two staged steps in a row
+    }
+  }
+  EXPECT_LT(RelDiff(staged.weights(), plain.weights()), 1e-10);
+}
+
 // d log p / d (log Lambda_k, log sigma_n, log s_j) against central differences of batch fits.
 TEST(WeightSpaceGP, EvidenceGradientMatchesCentralDifferences) {
   const int D = 8, P = 3, m = 25;
