@@ -9,8 +9,7 @@ namespace structgp {
 
 using internal::kNumU;
 
-GravityBasisFeatureMap::GravityBasisFeatureMap(int num_joints,
-                                               const GravityBasisOptions& options)
+GravityBasisFeatureMap::GravityBasisFeatureMap(int num_joints, const GravityBasisOptions& options)
     : num_joints_(num_joints), options_(options) {
   if (num_joints < 1 || num_joints > kMaxGravityBasisJoints) {
     throw std::invalid_argument("GravityBasisFeatureMap: expected 1 to " +

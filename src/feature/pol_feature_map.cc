@@ -77,8 +77,11 @@ void PolFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
   for (int k = 0; k < nv; ++k) p[k] *= c0;
 
   if (options_.include_gravity) {
+    // u(q) = (1, cos q, sin q) is the head of v(q): no further trigonometric calls.
     double u[kMaxPolJoints * kNumU];
-    for (int j = 0; j < n; ++j) internal::TrigU(q[j], u + j * kNumU);
+    for (int j = 0; j < n; ++j) {
+      for (int i = 0; i < kNumU; ++i) u[j * kNumU + i] = v[j * kNumV + i];
+    }
     internal::TensorProduct<kNumU>(n, u, 1.0, true, internal::Multiply(), p + gravity_begin_);
   }
 }
@@ -130,8 +133,7 @@ void PolFeatureMap::PriorVariance(const ConstVectorRef& shape, VectorRef lambda,
     double wu[kMaxPolJoints * kNumU], du[kMaxPolJoints * kNumU];
     for (int j = 0; j < n; ++j) internal::WeightsU(s, wu + j * kNumU, du + j * kNumU);
     const int g = gravity_begin_;
-    const int size =
-        internal::TensorProduct<kNumU>(n, wu, 1.0, true, internal::Multiply(), l + g);
+    const int size = internal::TensorProduct<kNumU>(n, wu, 1.0, true, internal::Multiply(), l + g);
     for (int k = 0; k < size; ++k) l[g + k] *= s.c_psi;
     if (d != nullptr) {
       internal::TensorProduct<kNumU>(n, du, 0.0, true, internal::Add(), d + g);

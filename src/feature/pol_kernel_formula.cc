@@ -102,8 +102,8 @@ double PolKernel(const ConstVectorRef& a, const ConstVectorRef& b, int num_joint
   const double psi2 = p.psi_sigma * p.psi_sigma;
   if (d_log_sigma != nullptr) {
     *d_log_sigma = p.d_inertial_plus_coriolis * psi2 +
-                   p.inertial_plus_coriolis * 2.0 * p.psi_sigma * p.d_psi_sigma +
-                   p.d_psi_sigma - p.d_c_psi;
+                   p.inertial_plus_coriolis * 2.0 * p.psi_sigma * p.d_psi_sigma + p.d_psi_sigma -
+                   p.d_c_psi;
   }
   return p.inertial_plus_coriolis * psi2 + p.psi_sigma - p.c_psi;
 }
