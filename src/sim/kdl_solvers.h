@@ -4,13 +4,12 @@
 // The KDL solvers and joint arrays needed to evaluate a robot's dynamics, built once for a
 // chain and reused for many states. Not part of the public API: it exposes KDL types.
 
+#include <Eigen/Core>
 #include <kdl/chain.hpp>
 #include <kdl/chaindynparam.hpp>
 #include <kdl/chainidsolver_recursive_newton_euler.hpp>
 #include <kdl/jntarray.hpp>
 #include <kdl/jntspaceinertiamatrix.hpp>
-
-#include <Eigen/Core>
 
 namespace structgp {
 namespace sim {

@@ -47,6 +47,9 @@ struct LinkParameters {
   /// Rotational inertia about the centre of mass, in the axes of link frame i, kg m^2.
   /// Symmetric positive semi-definite.
   Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+  /// Armature: inertia of the motor rotor and gears reflected to the joint (rotor inertia
+  /// times gear ratio squared), kg m^2 (>= 0). Adds to the diagonal entry of M(q).
+  double armature = 0.0;
 };
 
 /// The three rigid-body terms of the inverse dynamics at one state, each N m (size N).
@@ -64,8 +67,10 @@ class Robot {
   /// Builds the robot from one LinkParameters per joint (1 <= N). base_rotation is the
   /// orientation of the DH base frame 0 in the world frame (gravity is -z of the world);
   /// the identity makes joint 1 turn about the vertical. Throws std::invalid_argument on
-  /// an empty link list, a negative or non-finite mass, an inertia that is not symmetric
-  /// positive semi-definite, or a base_rotation that is not a rotation matrix.
+  /// an empty link list, a negative or non-finite mass or armature, an inertia that is not
+  /// symmetric positive semi-definite, or a base_rotation that is not a rotation matrix.
+  /// The triangle inequalities of the principal moments are not enforced (published
+  /// models such as the PUMA 560 list only the inertia terms that matter).
   Robot(std::string name, std::vector<LinkParameters> links,
         const Eigen::Matrix3d& base_rotation = Eigen::Matrix3d::Identity());
 
@@ -132,8 +137,9 @@ Robot ThreeLinkArm();
 /// reported for the PUMA 560 robot", Proc. IEEE ICRA 1994, pp. 1608-1613 (as also used by
 /// the Robotics Toolbox `puma560` model), which build on B. Armstrong, O. Khatib and
 /// J. Burdick, "The explicit dynamic model and inertial parameters of the PUMA 560 arm",
-/// Proc. IEEE ICRA 1986. Rigid links only: motor armature inertia, gear ratios and friction
-/// are not included. Name "puma560".
+/// Proc. IEEE ICRA 1986. Includes the armature (motor rotor inertia times gear ratio
+/// squared) of that model; friction is separate (see Puma560Friction in friction.h).
+/// Name "puma560".
 Robot Puma560();
 
 }  // namespace sim
