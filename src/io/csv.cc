@@ -1,0 +1,499 @@
+#include "structgp/io/csv.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "io/line_reader.h"
+#include "structgp/core/validate.h"
+
+namespace structgp {
+namespace {
+
+using internal::EditorColumn;
+
+// Longest piece of a user's cell quoted in a message [characters]; longer text is cut.
+constexpr std::size_t kMaxQuotedChars = 40;
+// Most header names listed when the header has no joint columns at all.
+constexpr std::size_t kMaxListedNames = 10;
+
+// The four quantities of a robot data file, in the order of their columns in X then Y.
+constexpr int kNumBlocks = 4;
+constexpr const char* kBlockPrefix[kNumBlocks] = {"q", "qd", "qdd", "tau"};
+
+const char* const kExpectedColumns = "q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN";
+
+// One cell of a line: bytes [begin, end) after trimming whitespace and one pair of double
+// quotes; `start` is where the cell begins (just after the previous separator).
+struct Cell {
+  std::size_t start;
+  std::size_t begin;
+  std::size_t end;
+};
+
+bool IsBlank(char c) { return c == ' ' || c == '\t'; }
+
+bool IsBlankLine(const std::string& line) {
+  for (char c : line) {
+    if (!IsBlank(c)) return false;
+  }
+  return true;
+}
+
+void SplitCells(const std::string& line, std::vector<Cell>* cells) {
+  cells->clear();
+  std::size_t start = 0;
+  for (;;) {
+    std::size_t stop = line.find(',', start);
+    if (stop == std::string::npos) stop = line.size();
+    std::size_t begin = start;
+    std::size_t end = stop;
+    while (begin < end && IsBlank(line[begin])) ++begin;
+    while (end > begin && IsBlank(line[end - 1])) --end;
+    if (end - begin >= 2 && line[begin] == '"' && line[end - 1] == '"') {
+      ++begin;
+      --end;
+    }
+    cells->push_back({start, begin, end});
+    if (stop == line.size()) break;
+    start = stop + 1;
+  }
+}
+
+std::string_view Text(const std::string& line, const Cell& cell) {
+  return std::string_view(line).substr(cell.begin, cell.end - cell.begin);
+}
+
+// The editor column of a cell: its first character, or where it starts when it is empty.
+int CellColumn(const std::string& line, const Cell& cell) {
+  return EditorColumn(line, cell.begin < cell.end ? cell.begin : cell.start);
+}
+
+// `text` in single quotes for a message, cut to kMaxQuotedChars, control bytes escaped.
+std::string Quoted(std::string_view text) {
+  std::string out = "'";
+  std::size_t shown = 0;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if ((c & 0xC0) != 0x80 && shown++ == kMaxQuotedChars) {
+      out += "...";
+      break;
+    }
+    if (c < 0x20 || c == 0x7F) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\x%02X", c);
+      out += escaped;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  out += "'";
+  return out;
+}
+
+std::string Shortest(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+std::string Join(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& name : names) {
+    if (!out.empty()) out += ", ";
+    out += name;
+  }
+  return out;
+}
+
+enum class ParseResult { kOk, kNotANumber, kOutOfRange };
+
+// Parses the whole of `text` as a decimal number (C locale, optional sign, optional
+// exponent; "nan", "inf" and "infinity" in any case). Trailing characters are an error.
+ParseResult ParseNumber(std::string_view text, double* value) {
+  const char* first = text.data();
+  const char* last = text.data() + text.size();
+  // std::from_chars takes '-' but not '+'.
+  if (first != last && *first == '+' && last - first > 1 && first[1] != '-' && first[1] != '+') {
+    ++first;
+  }
+  const auto result = std::from_chars(first, last, *value, std::chars_format::general);
+  if (result.ec == std::errc::result_out_of_range && result.ptr == last) {
+    return ParseResult::kOutOfRange;
+  }
+  if (result.ec != std::errc() || result.ptr != last) return ParseResult::kNotANumber;
+  return ParseResult::kOk;
+}
+
+// A column the reader uses: `t`, or joint `joint` (1-based) of block `block`.
+struct ColumnName {
+  bool is_time = false;
+  int block = 0;
+  int joint = 0;
+};
+
+bool ParseColumnName(std::string_view name, ColumnName* out) {
+  if (name == "t") {
+    *out = ColumnName{true, 0, 0};
+    return true;
+  }
+  // Longest prefix first: "qdd3" must not be read as "q" + "dd3".
+  for (int block = kNumBlocks - 1; block >= 0; --block) {
+    const std::string_view prefix = kBlockPrefix[block];
+    if (name.size() <= prefix.size() || name.substr(0, prefix.size()) != prefix) continue;
+    const std::string_view digits = name.substr(prefix.size());
+    if (digits[0] < '1' || digits[0] > '9') return false;  // No "q0", "q01", "q-1".
+    int joint = 0;
+    const auto result = std::from_chars(digits.data(), digits.data() + digits.size(), joint);
+    if (result.ec != std::errc() || result.ptr != digits.data() + digits.size()) return false;
+    *out = ColumnName{false, block, joint};
+    return true;
+  }
+  return false;
+}
+
+std::string CanonicalName(int block, int joint) {
+  return kBlockPrefix[block] + std::to_string(joint);
+}
+
+// What the reader does with each CSV column.
+struct Layout {
+  int num_joints = 0;
+  int num_cells = 0;
+  // Per CSV column: -1 ignored, 0..4N-1 the column of [X Y], 4N the time.
+  std::vector<int> role;
+  std::vector<std::string> names;  // Per CSV column, as written in the header (trimmed).
+};
+
+class CsvReader {
+ public:
+  CsvReader(const std::string& path, const CsvOptions& options)
+      : path_(path), options_(options), reader_(path) {}
+
+  RobotData Read();
+
+ private:
+  [[noreturn]] void Fail(int line, int column, const std::string& message) const {
+    throw DataError(path_, line, column, message);
+  }
+  [[noreturn]] void FailCell(int column_index, const std::string& message) const {
+    Fail(reader_.line_number(), CellColumn(line_, cells_[column_index]),
+         "CSV column " + std::to_string(column_index + 1) + " (" +
+             layout_.names[column_index] + "): " + message);
+  }
+
+  void ReadHeader();
+  void ReadRow();
+  double ParseCell(int column_index, bool is_time);
+
+  std::string path_;
+  CsvOptions options_;
+  internal::LineReader reader_;
+  std::string line_;
+  std::vector<Cell> cells_;
+  Layout layout_;
+
+  std::vector<double> values_;  // Row-major, 4N per row: q, qd, qdd, tau.
+  std::vector<double> times_;
+  std::vector<int> lines_;
+};
+
+void CsvReader::ReadHeader() {
+  if (!reader_.Next(&line_)) {
+    Fail(0, 0, "no data rows: the file is empty (expected a header row naming the columns " +
+                   std::string(kExpectedColumns) + ", then data rows)");
+  }
+  if (IsBlankLine(line_)) {
+    Fail(1, 1, std::string("line 1 is empty, expected the header row naming the columns ") +
+                   kExpectedColumns);
+  }
+  const std::size_t carriage_return = line_.find('\r');
+  if (carriage_return != std::string::npos) {
+    Fail(1, EditorColumn(line_, carriage_return),
+         "carriage return inside the header line: lines must end with LF or CR LF "
+         "(old Mac CR-only line endings are not supported)");
+  }
+  SplitCells(line_, &cells_);
+  if (cells_.size() == 1) {
+    for (const char separator : {';', '\t'}) {
+      const std::size_t at = line_.find(separator);
+      if (at == std::string::npos) continue;
+      Fail(1, EditorColumn(line_, at),
+           std::string("the header is a single column containing ") +
+               (separator == ';' ? "';'" : "a tab") +
+               ": cells must be separated by ',' (other separators are not supported)");
+    }
+  }
+  double number = 0.0;
+  if (ParseNumber(Text(line_, cells_[0]), &number) == ParseResult::kOk) {
+    Fail(1, CellColumn(line_, cells_[0]),
+         "expected a header row of column names, got a number " +
+             Quoted(Text(line_, cells_[0])) + " in CSV column 1 (the header row is required: " +
+             kExpectedColumns + ")");
+  }
+
+  const int num_cells = static_cast<int>(cells_.size());
+  layout_.num_cells = num_cells;
+  layout_.names.resize(num_cells);
+  std::vector<ColumnName> parsed(num_cells);
+  std::vector<bool> recognised(num_cells, false);
+  std::map<std::string, int> first_seen;  // Recognised name -> CSV column (0-based).
+  int max_joint = 0;
+  for (int c = 0; c < num_cells; ++c) {
+    layout_.names[c] = std::string(Text(line_, cells_[c]));
+    if (!ParseColumnName(layout_.names[c], &parsed[c])) continue;
+    recognised[c] = true;
+    const auto [it, inserted] = first_seen.emplace(layout_.names[c], c);
+    if (!inserted) {
+      Fail(1, CellColumn(line_, cells_[c]),
+           "duplicated column '" + layout_.names[c] + "': CSV columns " +
+               std::to_string(it->second + 1) + " and " + std::to_string(c + 1));
+    }
+    if (!parsed[c].is_time) max_joint = std::max(max_joint, parsed[c].joint);
+  }
+
+  // N: the largest k with q1..qk all present.
+  int n = 0;
+  while (n < max_joint && first_seen.count(CanonicalName(0, n + 1)) > 0) ++n;
+  if (n == 0) {
+    std::vector<std::string> shown;
+    for (int c = 0; c < num_cells && shown.size() < kMaxListedNames; ++c) {
+      shown.push_back(Quoted(layout_.names[c]));
+    }
+    std::string listed = Join(shown);
+    if (static_cast<std::size_t>(num_cells) > kMaxListedNames) listed += ", ...";
+    Fail(1, 0, std::string("no joint columns: expected ") + kExpectedColumns + " (q1 is " +
+                   "missing; header has " + listed + ")");
+  }
+  for (int c = 0; c < num_cells; ++c) {
+    if (recognised[c] && !parsed[c].is_time && parsed[c].joint > n) {
+      Fail(1, CellColumn(line_, cells_[c]),
+           "column '" + layout_.names[c] + "' (CSV column " + std::to_string(c + 1) +
+               ") is for joint " + std::to_string(parsed[c].joint) + ", but the header has q1..q" +
+               std::to_string(n) + " only (" + CanonicalName(0, n + 1) +
+               " is missing; joints must be numbered 1..N without gaps)");
+    }
+  }
+  std::vector<std::string> missing;
+  std::vector<std::string> present;
+  for (int block = 0; block < kNumBlocks; ++block) {
+    for (int joint = 1; joint <= n; ++joint) {
+      const std::string name = CanonicalName(block, joint);
+      (first_seen.count(name) > 0 ? present : missing).push_back(name);
+    }
+  }
+  if (!missing.empty()) {
+    Fail(1, 0, std::string(missing.size() == 1 ? "missing column " : "missing columns ") +
+                   Join(missing) + " (header has " + Join(present) + ")");
+  }
+  if (options_.expected_joints > 0 && options_.expected_joints != n) {
+    Fail(1, 0, "expected " + std::to_string(options_.expected_joints) +
+                   " joints (model), file has " + std::to_string(n));
+  }
+
+  layout_.num_joints = n;
+  layout_.role.assign(num_cells, -1);
+  for (int c = 0; c < num_cells; ++c) {
+    if (!recognised[c]) continue;
+    layout_.role[c] = parsed[c].is_time ? kNumBlocks * n
+                                        : parsed[c].block * n + (parsed[c].joint - 1);
+  }
+}
+
+double CsvReader::ParseCell(int c, bool is_time) {
+  const std::string_view text = Text(line_, cells_[c]);
+  double value = 0.0;
+  switch (ParseNumber(text, &value)) {
+    case ParseResult::kOk:
+      break;
+    case ParseResult::kNotANumber:
+      FailCell(c, text.empty() ? std::string("expected a number, got an empty cell")
+                               : "expected a number, got " + Quoted(text));
+    case ParseResult::kOutOfRange:
+      FailCell(c, "expected a number, got " + Quoted(text) +
+                      ", which is outside the range of a double");
+  }
+  if (is_time) {
+    if (!std::isfinite(value)) FailCell(c, "expected a finite time, got " + Quoted(text));
+    return value;
+  }
+  if (!std::isfinite(value)) {
+    if (options_.allow_non_finite) return value;
+    FailCell(c, "expected a finite number, got " + Quoted(text) +
+                    " (CsvOptions::allow_non_finite accepts NaN and Inf)");
+  }
+  if (std::abs(value) > options_.max_abs) {
+    FailCell(c, "expected a magnitude of at most " + Shortest(options_.max_abs) +
+                    " (CsvOptions::max_abs), got " + Quoted(text) +
+                    "; wrong units or a logging glitch?");
+  }
+  return value;
+}
+
+void CsvReader::ReadRow() {
+  SplitCells(line_, &cells_);
+  const int got = static_cast<int>(cells_.size());
+  if (got != layout_.num_cells) {
+    const int column = got > layout_.num_cells
+                           ? CellColumn(line_, cells_[layout_.num_cells])
+                           : EditorColumn(line_, line_.size());
+    Fail(reader_.line_number(), column,
+         "expected " + std::to_string(layout_.num_cells) + " cells (as in the header), got " +
+             std::to_string(got) +
+             (got > layout_.num_cells ? " (numbers must use '.' as the decimal mark)" : ""));
+  }
+  const int width = kNumBlocks * layout_.num_joints;
+  const std::size_t row_start = values_.size();
+  values_.resize(row_start + width);
+  for (int c = 0; c < got; ++c) {
+    const int role = layout_.role[c];
+    if (role < 0) continue;
+    if (role < width) {
+      values_[row_start + role] = ParseCell(c, false);
+      continue;
+    }
+    const double time = ParseCell(c, true);
+    if (!times_.empty() && time < times_.back()) {
+      FailCell(c, "time goes backwards: " + Quoted(Text(line_, cells_[c])) + " after " +
+                      Shortest(times_.back()) + " on line " + std::to_string(lines_.back()) +
+                      " (t must be non-decreasing)");
+    }
+    times_.push_back(time);
+  }
+  lines_.push_back(reader_.line_number());
+}
+
+RobotData CsvReader::Read() {
+  ReadHeader();
+  int first_blank_line = 0;
+  while (reader_.Next(&line_)) {
+    if (IsBlankLine(line_)) {
+      if (first_blank_line == 0) first_blank_line = reader_.line_number();
+      continue;
+    }
+    if (first_blank_line != 0) {
+      Fail(first_blank_line, 1,
+           "empty line inside the data (only empty lines at the end of the file are allowed)");
+    }
+    ReadRow();
+  }
+  if (lines_.empty()) Fail(1, 0, "no data rows: the header is not followed by any data");
+
+  const int n = layout_.num_joints;
+  const Eigen::Index m = static_cast<Eigen::Index>(lines_.size());
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
+      all(values_.data(), m, kNumBlocks * n);
+  RobotData data;
+  data.num_joints = n;
+  data.X = all.leftCols(3 * n);
+  data.Y = all.rightCols(n);
+  if (!times_.empty()) data.t = Eigen::Map<const Eigen::VectorXd>(times_.data(), m);
+  data.source = path_;
+  data.line = Eigen::Map<const Eigen::VectorXi>(lines_.data(), m);
+  return data;
+}
+
+void AppendNumber(double value, int precision, std::string* out) {
+  char buffer[64];
+  std::to_chars_result result;
+  if (std::isnan(value)) {
+    *out += "nan";
+    return;
+  }
+  if (precision == 0) {
+    result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  } else {
+    result = std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general,
+                           precision);
+  }
+  out->append(buffer, result.ptr);
+}
+
+}  // namespace
+
+RobotData ReadRobotCsv(const std::string& path, const CsvOptions& options) {
+  if (options.expected_joints < 0) {
+    throw std::invalid_argument("CsvOptions::expected_joints: expected 0 (infer) or a positive "
+                                "number of joints, got " +
+                                std::to_string(options.expected_joints));
+  }
+  if (!(options.max_abs > 0.0)) {
+    throw std::invalid_argument("CsvOptions::max_abs: expected a positive limit, got " +
+                                Shortest(options.max_abs));
+  }
+  CsvReader reader(path, options);
+  return reader.Read();
+}
+
+std::vector<std::string> RobotCsvHeader(int num_joints, bool with_time) {
+  if (num_joints < 1) {
+    throw std::invalid_argument("RobotCsvHeader: expected at least 1 joint, got " +
+                                std::to_string(num_joints));
+  }
+  std::vector<std::string> header;
+  if (with_time) header.push_back("t");
+  for (int block = 0; block < kNumBlocks; ++block) {
+    for (int joint = 1; joint <= num_joints; ++joint) {
+      header.push_back(CanonicalName(block, joint));
+    }
+  }
+  return header;
+}
+
+void WriteCsvAtomically(const std::string& path, const std::vector<std::string>& header,
+                        const Eigen::MatrixXd& values, int precision) {
+  RequireSize("WriteCsvAtomically: header", static_cast<Eigen::Index>(header.size()),
+              values.cols(), "names (one per column of values)");
+  if (precision < 0 || precision > 17) {
+    throw std::invalid_argument("WriteCsvAtomically: expected a precision in 0..17, got " +
+                                std::to_string(precision));
+  }
+  std::string contents;
+  for (std::size_t c = 0; c < header.size(); ++c) {
+    if (header[c].find_first_of(",\"\r\n") != std::string::npos) {
+      throw std::invalid_argument("WriteCsvAtomically: header name " + std::to_string(c + 1) +
+                                  " " + Quoted(header[c]) +
+                                  " contains ',', '\"' or a line break");
+    }
+    if (c > 0) contents += ',';
+    contents += header[c];
+  }
+  contents += '\n';
+  contents.reserve(contents.size() + static_cast<std::size_t>(values.size()) * 24);
+  for (Eigen::Index i = 0; i < values.rows(); ++i) {
+    for (Eigen::Index j = 0; j < values.cols(); ++j) {
+      if (j > 0) contents += ',';
+      AppendNumber(values(i, j), precision, &contents);
+    }
+    contents += '\n';
+  }
+  WriteTextAtomically(path, contents);
+}
+
+void WriteRobotCsv(const std::string& path, const RobotData& data) {
+  const int n = data.num_joints;
+  if (n < 1) {
+    throw std::invalid_argument("WriteRobotCsv: expected num_joints >= 1, got " +
+                                std::to_string(n));
+  }
+  RequireSize("WriteRobotCsv: X", data.X.cols(), 3 * n, "columns (3 x num_joints)");
+  RequireSize("WriteRobotCsv: Y", data.Y.cols(), n, "columns (num_joints)");
+  RequireSize("WriteRobotCsv: Y", data.Y.rows(), data.X.rows(), "rows (as X)");
+  if (data.has_time()) RequireSize("WriteRobotCsv: t", data.t.size(), data.X.rows(), "entries");
+  const int offset = data.has_time() ? 1 : 0;
+  Eigen::MatrixXd values(data.X.rows(), offset + 4 * n);
+  if (data.has_time()) values.col(0) = data.t;
+  values.middleCols(offset, 3 * n) = data.X;
+  values.rightCols(n) = data.Y;
+  WriteCsvAtomically(path, RobotCsvHeader(n, data.has_time()), values, 17);
+}
+
+}  // namespace structgp
