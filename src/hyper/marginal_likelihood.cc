@@ -1,0 +1,557 @@
+#include "structgp/hyper/marginal_likelihood.h"
+
+#include <ceres/first_order_function.h>
+#include <ceres/gradient_problem.h>
+#include <ceres/gradient_problem_solver.h>
+#include <ceres/iteration_callback.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "structgp/core/validate.h"
+#include "structgp/model/kernel_gp.h"
+
+namespace structgp {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// Hyperparameters::Validate accepts log sigma_n in the open interval (-50, 50).
+constexpr double kNoiseLimit = 50.0;
+
+bool BoundsValid(const char* name, const LogBounds& bounds, double limit, std::string* error) {
+  if (std::isfinite(bounds.lower) && std::isfinite(bounds.upper) && bounds.lower < bounds.upper &&
+      bounds.lower > -limit && bounds.upper < limit) {
+    return true;
+  }
+  if (error != nullptr) {
+    std::ostringstream os;
+    os << "MaximumLikelihoodOptions::" << name << ": expected finite lower < upper";
+    if (std::isfinite(limit)) os << " inside (" << -limit << ", " << limit << ")";
+    os << ", got [" << bounds.lower << ", " << bounds.upper << "]";
+    *error = os.str();
+  }
+  return false;
+}
+
+bool ToleranceValid(const char* name, double value, std::string* error) {
+  if (std::isfinite(value) && value >= 0.0) return true;
+  if (error != nullptr) {
+    std::ostringstream os;
+    os << "MaximumLikelihoodOptions::" << name << ": expected a finite value >= 0, got " << value;
+    *error = os.str();
+  }
+  return false;
+}
+
+const char* BoundsName(HyperparameterGroup group) {
+  switch (group) {
+    case HyperparameterGroup::kShape:
+      return "shape_bounds";
+    case HyperparameterGroup::kBlockScale:
+      return "block_scale_bounds";
+    case HyperparameterGroup::kNoise:
+      return "noise_bounds";
+    case HyperparameterGroup::kOutputScale:
+      return "output_scale_bounds";
+  }
+  return "";
+}
+
+const LogBounds& BoundsOf(const MaximumLikelihoodOptions& options, HyperparameterGroup group) {
+  switch (group) {
+    case HyperparameterGroup::kShape:
+      return options.shape_bounds;
+    case HyperparameterGroup::kBlockScale:
+      return options.block_scale_bounds;
+    case HyperparameterGroup::kNoise:
+      return options.noise_bounds;
+    case HyperparameterGroup::kOutputScale:
+      return options.output_scale_bounds;
+  }
+  return options.shape_bounds;
+}
+
+// True when x is finite and inside [lower, upper] entry by entry.
+bool InsideBox(const Eigen::Map<const Vector>& x, const Vector& lower, const Vector& upper) {
+  return x.allFinite() && (x.array() >= lower.array()).all() && (x.array() <= upper.array()).all();
+}
+
+// Throws std::invalid_argument naming the first free starting value outside its bounds.
+void RequireStartInside(const char* who, const Vector& x, const Vector& lower, const Vector& upper,
+                        const std::vector<std::string>& names,
+                        const std::vector<std::string>& bounds_names) {
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    if (x[i] >= lower[i] && x[i] <= upper[i]) continue;
+    std::ostringstream os;
+    os << who << ": the starting value of " << names[static_cast<size_t>(i)] << " is " << x[i]
+       << ", outside its bounds [" << lower[i] << ", " << upper[i]
+       << "]; start inside them or widen MaximumLikelihoodOptions::"
+       << bounds_names[static_cast<size_t>(i)];
+    throw std::invalid_argument(os.str());
+  }
+}
+
+// The Ceres view of an objective. Remembers the best point it has seen, so that the result
+// never depends on which iterate Ceres reports back.
+template <typename Objective>
+class CeresFunction final : public ceres::FirstOrderFunction {
+ public:
+  explicit CeresFunction(const Objective* objective)
+      : objective_(objective), best_x_(objective->num_parameters()) {}
+
+  bool Evaluate(const double* x, double* cost, double* gradient) const override {
+    if (!objective_->Evaluate(x, cost, gradient)) return false;
+    if (*cost < best_cost_) {
+      best_cost_ = *cost;
+      best_x_ = Eigen::Map<const Vector>(x, NumParameters());
+    }
+    return true;
+  }
+  int NumParameters() const override { return objective_->num_parameters(); }
+
+  bool has_best() const { return std::isfinite(best_cost_); }
+  const Vector& best_x() const { return best_x_; }
+
+ private:
+  const Objective* objective_;
+  mutable Vector best_x_;
+  mutable double best_cost_ = kInfinity;
+};
+
+class ProgressPrinter final : public ceres::IterationCallback {
+ public:
+  explicit ProgressPrinter(double num_observations) : n_(num_observations) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    std::fprintf(stderr,
+                 "ML-II iteration %4d  -log p(Y) %.10g  max|d/dx| %.3e  |step| %.3e  "
+                 "line search evaluations %d\n",
+                 s.iteration, s.cost * n_, s.gradient_max_norm * n_, s.step_norm,
+                 s.line_search_function_evaluations);
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  double n_;
+};
+
+// LBFGS on the objective from *x; *x receives the best point evaluated. The caller has checked
+// that *x lies inside the bounds.
+template <typename Objective>
+MaximumLikelihoodSummary Minimize(const Objective& objective,
+                                  const MaximumLikelihoodOptions& options,
+                                  const std::vector<std::string>& names, Vector* x) {
+  const auto start_time = std::chrono::steady_clock::now();
+  MaximumLikelihoodSummary summary;
+  summary.parameter_names = names;
+  const double n = objective.num_observations();
+  summary.num_observations = n;
+  const int num_parameters = objective.num_parameters();
+  auto finish = [&]() {
+    summary.num_evaluations = objective.num_evaluations();
+    summary.num_failed_evaluations = objective.num_failed_evaluations();
+    summary.num_out_of_bounds_evaluations = objective.num_out_of_bounds_evaluations();
+    summary.elapsed_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+    if (options.verbose) std::fprintf(stderr, "%s\n", summary.BriefReport().c_str());
+    return summary;
+  };
+
+  double cost = 0.0;
+  Vector gradient(num_parameters);
+  if (!objective.Evaluate(x->data(), &cost, gradient.data())) {
+    summary.termination = MaximumLikelihoodTermination::kInitialPointFailed;
+    summary.message = "the evidence could not be evaluated at the starting point";
+    summary.initial_negative_log_likelihood = kInfinity;
+    summary.final_negative_log_likelihood = kInfinity;
+    summary.final_gradient = Vector::Zero(num_parameters);
+    return finish();
+  }
+  summary.initial_negative_log_likelihood = cost * n;
+  if (num_parameters == 0) {
+    summary.termination = MaximumLikelihoodTermination::kNoFreeParameters;
+    summary.message = "no hyper-parameter is free";
+    summary.final_negative_log_likelihood = cost * n;
+    summary.final_gradient = Vector();
+    return finish();
+  }
+
+  ceres::GradientProblemSolver::Options solver_options;
+  solver_options.line_search_direction_type = ceres::LBFGS;
+  solver_options.max_lbfgs_rank = options.lbfgs_rank;
+  // Scales the initial inverse Hessian of each LBFGS step by s^T y / y^T y, so that the first
+  // trial step of the line search has the right length in every direction.
+  solver_options.use_approximate_eigenvalue_bfgs_scaling = true;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.max_solver_time_in_seconds = options.max_seconds;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.logging_type = ceres::SILENT;
+  ProgressPrinter printer(n);
+  if (options.verbose) solver_options.callbacks.push_back(&printer);
+
+  auto* function = new CeresFunction<Objective>(&objective);
+  ceres::GradientProblem problem(function);  // owns function
+  Vector solver_x = *x;
+  ceres::GradientProblemSolver::Summary solver_summary;
+  ceres::Solve(solver_options, problem, solver_x.data(), &solver_summary);
+
+  switch (solver_summary.termination_type) {
+    case ceres::CONVERGENCE:
+      summary.termination = MaximumLikelihoodTermination::kConverged;
+      break;
+    case ceres::NO_CONVERGENCE:
+      summary.termination = MaximumLikelihoodTermination::kMaxIterations;
+      break;
+    default:
+      summary.termination = MaximumLikelihoodTermination::kLineSearchFailed;
+      break;
+  }
+  summary.message = solver_summary.message;
+  summary.iterations = std::max(0, static_cast<int>(solver_summary.iterations.size()) - 1);
+
+  // The best point seen; re-evaluated with its gradient (evaluations are deterministic).
+  Vector best = function->has_best() ? function->best_x() : *x;
+  if (!objective.Evaluate(best.data(), &cost, gradient.data())) {
+    best = *x;
+    objective.Evaluate(best.data(), &cost, gradient.data());
+  }
+  *x = best;
+  summary.final_negative_log_likelihood = cost * n;
+  summary.final_gradient = gradient * n;
+  for (int i = 0; i < num_parameters; ++i) {
+    if (best[i] - objective.lower_bounds()[i] <= kAtBoundDistance ||
+        objective.upper_bounds()[i] - best[i] <= kAtBoundDistance) {
+      summary.at_bounds.push_back(names[static_cast<size_t>(i)]);
+    }
+  }
+  return finish();
+}
+
+}  // namespace
+
+const char* ToString(MaximumLikelihoodTermination termination) {
+  switch (termination) {
+    case MaximumLikelihoodTermination::kConverged:
+      return "converged";
+    case MaximumLikelihoodTermination::kMaxIterations:
+      return "max_iterations";
+    case MaximumLikelihoodTermination::kLineSearchFailed:
+      return "line_search_failed";
+    case MaximumLikelihoodTermination::kInitialPointFailed:
+      return "initial_point_failed";
+    case MaximumLikelihoodTermination::kNoFreeParameters:
+      return "no_free_parameters";
+  }
+  return "unknown";
+}
+
+bool MaximumLikelihoodOptions::IsValid(std::string* error) const {
+  if (max_iterations < 1) {
+    if (error != nullptr) {
+      *error = "MaximumLikelihoodOptions::max_iterations: expected >= 1, got " +
+               std::to_string(max_iterations);
+    }
+    return false;
+  }
+  if (lbfgs_rank < 1) {
+    if (error != nullptr) {
+      *error =
+          "MaximumLikelihoodOptions::lbfgs_rank: expected >= 1, got " + std::to_string(lbfgs_rank);
+    }
+    return false;
+  }
+  if (!(std::isfinite(max_seconds) && max_seconds > 0.0)) {
+    if (error != nullptr) {
+      *error = "MaximumLikelihoodOptions::max_seconds: expected a finite value > 0, got " +
+               std::to_string(max_seconds);
+    }
+    return false;
+  }
+  return ToleranceValid("gradient_tolerance", gradient_tolerance, error) &&
+         ToleranceValid("function_tolerance", function_tolerance, error) &&
+         ToleranceValid("parameter_tolerance", parameter_tolerance, error) &&
+         BoundsValid("shape_bounds", shape_bounds, kInfinity, error) &&
+         BoundsValid("block_scale_bounds", block_scale_bounds, kInfinity, error) &&
+         BoundsValid("noise_bounds", noise_bounds, kNoiseLimit, error) &&
+         BoundsValid("output_scale_bounds", output_scale_bounds, kInfinity, error) &&
+         BoundsValid("kernel_parameter_bounds", kernel_parameter_bounds, kInfinity, error);
+}
+
+void MaximumLikelihoodOptions::Validate() const {
+  std::string error;
+  if (!IsValid(&error)) throw std::invalid_argument(error);
+}
+
+FreeHyperparameters MaximumLikelihoodOptions::free_hyperparameters() const {
+  FreeHyperparameters free;
+  free.shape = optimize_shape;
+  free.block_scales = optimize_block_scales;
+  free.noise = optimize_noise;
+  free.output_scales = optimize_output_scales;
+  return free;
+}
+
+std::string MaximumLikelihoodSummary::BriefReport() const {
+  std::ostringstream os;
+  os << "ML-II: " << ToString(termination) << " after " << iterations << " iterations ("
+     << num_evaluations << " evaluations, " << num_failed_evaluations << " failed, "
+     << num_out_of_bounds_evaluations << " out of bounds), -log p(Y) "
+     << initial_negative_log_likelihood << " -> " << final_negative_log_likelihood;
+  if (final_gradient.size() > 0) {
+    os << ", max|gradient| " << final_gradient.lpNorm<Eigen::Infinity>();
+  }
+  if (!at_bounds.empty()) {
+    os << ", at bounds:";
+    for (const std::string& name : at_bounds) os << " " << name;
+  }
+  os << ", " << elapsed_seconds << " s";
+  return os.str();
+}
+
+// ---- weight space -----------------------------------------------------------------------------
+
+EvidenceObjective::EvidenceObjective(const WeightSpaceEvidence& evidence,
+                                     const MaximumLikelihoodOptions& options,
+                                     const Hyperparameters& start)
+    : evidence_(&evidence),
+      layout_(evidence.map(), evidence.statistics().num_outputs(), options.free_hyperparameters()),
+      base_(start) {
+  options.Validate();
+  const int num_outputs = evidence.statistics().num_outputs();
+  start.Validate(evidence.map(), num_outputs);
+  lower_.resize(layout_.size());
+  upper_.resize(layout_.size());
+  for (int i = 0; i < layout_.size(); ++i) {
+    const LogBounds& bounds = BoundsOf(options, layout_.group(i));
+    lower_[i] = bounds.lower;
+    upper_[i] = bounds.upper;
+  }
+  num_observations_ = std::max(1.0, evidence.statistics().count) * num_outputs;
+  work_ = base_;
+  gradient_ = base_;
+}
+
+Hyperparameters EvidenceObjective::ToHyperparameters(const ConstVectorRef& x) const {
+  Hyperparameters hyper = base_;
+  layout_.Unflatten(x, &hyper);
+  return hyper;
+}
+
+bool EvidenceObjective::Evaluate(const double* x, double* cost, double* gradient) const {
+  ++num_evaluations_;
+  const Eigen::Map<const Vector> xv(x, layout_.size());
+  if (!InsideBox(xv, lower_, upper_)) {
+    ++num_out_of_bounds_;
+    return false;
+  }
+  layout_.Unflatten(xv, &work_);
+  // A shape value far from its default can underflow a prior variance to 0 (or overflow it);
+  // the model rejects such a prior, so the point is declined here instead.
+  const Vector lambda = PriorVariance(evidence_->map(), work_);
+  if (!lambda.allFinite() || (lambda.array() <= 0.0).any()) {
+    ++num_failed_;
+    return false;
+  }
+  double lml = 0.0;
+  const Status status = evidence_->Evaluate(work_, &lml, gradient ? &gradient_ : nullptr);
+  if (status != Status::kOk || !std::isfinite(lml)) {
+    ++num_failed_;
+    return false;
+  }
+  if (gradient != nullptr) {
+    const Vector g = layout_.Flatten(gradient_);
+    if (!g.allFinite()) {
+      ++num_failed_;
+      return false;
+    }
+    Eigen::Map<Vector>(gradient, layout_.size()) = -g / num_observations_;
+  }
+  *cost = -lml / num_observations_;
+  return true;
+}
+
+MaximumLikelihoodSummary FitHyperparameters(const WeightSpaceEvidence& evidence,
+                                            const MaximumLikelihoodOptions& options,
+                                            Hyperparameters* hyper) {
+  if (hyper == nullptr) throw std::invalid_argument("FitHyperparameters: null hyper");
+  const EvidenceObjective objective(evidence, options, *hyper);
+  const HyperparameterLayout& layout = objective.layout();
+  Vector x = layout.Flatten(*hyper);
+  std::vector<std::string> bounds_names;
+  for (int i = 0; i < layout.size(); ++i) bounds_names.push_back(BoundsName(layout.group(i)));
+  RequireStartInside("FitHyperparameters", x, objective.lower_bounds(), objective.upper_bounds(),
+                     layout.names(), bounds_names);
+  MaximumLikelihoodSummary summary = Minimize(objective, options, layout.names(), &x);
+  if (summary.usable()) *hyper = objective.ToHyperparameters(x);
+  return summary;
+}
+
+// ---- function space ---------------------------------------------------------------------------
+
+KernelHyperparameters KernelHyperparameters::Defaults(const Kernel& kernel, int num_outputs) {
+  if (num_outputs < 1) {
+    throw std::invalid_argument("KernelHyperparameters::Defaults: expected num_outputs >= 1, got " +
+                                std::to_string(num_outputs));
+  }
+  KernelHyperparameters h;
+  h.kernel_parameters = kernel.parameters();
+  h.log_output_scale = Vector::Zero(num_outputs);
+  return h;
+}
+
+void KernelHyperparameters::Validate(const Kernel& kernel, int num_outputs) const {
+  RequireSize("KernelHyperparameters.kernel_parameters", kernel_parameters.size(),
+              kernel.num_parameters());
+  RequireSize("KernelHyperparameters.log_output_scale", log_output_scale.size(), num_outputs);
+  RequireFinite("KernelHyperparameters.kernel_parameters", kernel_parameters);
+  RequireFinite("KernelHyperparameters.log_output_scale", log_output_scale);
+  RequireInRange("KernelHyperparameters.log_noise_std", log_noise_std, -kNoiseLimit, kNoiseLimit);
+}
+
+KernelEvidenceObjective::KernelEvidenceObjective(const Kernel& kernel, const ConstMatrixRef& X,
+                                                 const ConstMatrixRef& Y,
+                                                 const MaximumLikelihoodOptions& options,
+                                                 const KernelHyperparameters& start)
+    : kernel_(kernel.Clone()),
+      X_(X),
+      Y_(Y),
+      free_kernel_(options.optimize_kernel_parameters),
+      free_noise_(options.optimize_noise),
+      free_scales_(options.optimize_output_scales),
+      base_(start) {
+  options.Validate();
+  RequireSize("KernelEvidenceObjective X", X.cols(), kernel.input_dim(), "columns");
+  RequireSize("KernelEvidenceObjective Y", Y.rows(), X.rows(), "rows (as in X)");
+  if (X.rows() < 1 || Y.cols() < 1) {
+    throw std::invalid_argument(
+        "KernelEvidenceObjective: expected at least one sample and "
+        "one output, got " +
+        std::to_string(X.rows()) + " x " + std::to_string(Y.cols()));
+  }
+  RequireFinite("KernelEvidenceObjective X", X);
+  RequireFinite("KernelEvidenceObjective Y", Y);
+  const int num_outputs = static_cast<int>(Y.cols());
+  start.Validate(kernel, num_outputs);
+  std::vector<double> lower, upper;
+  auto add = [&](const std::string& name, const LogBounds& bounds) {
+    names_.push_back(name);
+    lower.push_back(bounds.lower);
+    upper.push_back(bounds.upper);
+  };
+  if (free_kernel_) {
+    const std::vector<std::string> names = kernel.parameter_names();
+    for (int i = 0; i < kernel.num_parameters(); ++i) {
+      add(names.at(static_cast<size_t>(i)), options.kernel_parameter_bounds);
+    }
+  }
+  if (free_noise_) add("log_noise_std", options.noise_bounds);
+  if (free_scales_) {
+    for (int j = 0; j < num_outputs; ++j) {
+      add("log_output_scale_" + std::to_string(j + 1), options.output_scale_bounds);
+    }
+  }
+  lower_ = Eigen::Map<const Vector>(lower.data(), static_cast<Eigen::Index>(lower.size()));
+  upper_ = Eigen::Map<const Vector>(upper.data(), static_cast<Eigen::Index>(upper.size()));
+  num_observations_ = static_cast<double>(X.rows()) * num_outputs;
+}
+
+Vector KernelEvidenceObjective::Flatten(const KernelHyperparameters& hyper) const {
+  hyper.Validate(*kernel_, static_cast<int>(Y_.cols()));
+  Vector x(num_parameters());
+  Eigen::Index i = 0;
+  if (free_kernel_) {
+    x.segment(i, hyper.kernel_parameters.size()) = hyper.kernel_parameters;
+    i += hyper.kernel_parameters.size();
+  }
+  if (free_noise_) x[i++] = hyper.log_noise_std;
+  if (free_scales_) x.segment(i, hyper.log_output_scale.size()) = hyper.log_output_scale;
+  return x;
+}
+
+KernelHyperparameters KernelEvidenceObjective::ToHyperparameters(const ConstVectorRef& x) const {
+  RequireSize("KernelEvidenceObjective::ToHyperparameters x", x.size(), num_parameters());
+  KernelHyperparameters hyper = base_;
+  Eigen::Index i = 0;
+  if (free_kernel_) {
+    hyper.kernel_parameters = x.segment(i, base_.kernel_parameters.size());
+    i += base_.kernel_parameters.size();
+  }
+  if (free_noise_) hyper.log_noise_std = x[i++];
+  if (free_scales_) hyper.log_output_scale = x.segment(i, base_.log_output_scale.size());
+  return hyper;
+}
+
+bool KernelEvidenceObjective::Evaluate(const double* x, double* cost, double* gradient) const {
+  ++num_evaluations_;
+  const Eigen::Map<const Vector> xv(x, num_parameters());
+  if (!InsideBox(xv, lower_, upper_)) {
+    ++num_out_of_bounds_;
+    return false;
+  }
+  const KernelHyperparameters hyper = ToHyperparameters(xv);
+  kernel_->set_parameters(hyper.kernel_parameters);
+  const int num_outputs = static_cast<int>(Y_.cols());
+  KernelGP model(*kernel_, std::exp(2.0 * hyper.log_noise_std), num_outputs,
+                 hyper.log_output_scale.array().exp().matrix());
+  if (model.Fit(X_, Y_) != Status::kOk) {
+    ++num_failed_;
+    return false;
+  }
+  const bool want = gradient != nullptr;
+  Vector d_kernel, d_scales;
+  double d_noise = 0.0;
+  const double lml = model.LogMarginalLikelihood(want && free_kernel_ ? &d_kernel : nullptr,
+                                                 want && free_noise_ ? &d_noise : nullptr,
+                                                 want && free_scales_ ? &d_scales : nullptr);
+  if (!std::isfinite(lml)) {
+    ++num_failed_;
+    return false;
+  }
+  if (want) {
+    Vector g(num_parameters());
+    Eigen::Index i = 0;
+    if (free_kernel_) {
+      g.segment(i, d_kernel.size()) = d_kernel;
+      i += d_kernel.size();
+    }
+    if (free_noise_) g[i++] = d_noise;
+    if (free_scales_) g.segment(i, d_scales.size()) = d_scales;
+    if (!g.allFinite()) {
+      ++num_failed_;
+      return false;
+    }
+    Eigen::Map<Vector>(gradient, num_parameters()) = -g / num_observations_;
+  }
+  *cost = -lml / num_observations_;
+  return true;
+}
+
+MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const ConstMatrixRef& X,
+                                                  const ConstMatrixRef& Y,
+                                                  const MaximumLikelihoodOptions& options,
+                                                  KernelHyperparameters* hyper) {
+  if (hyper == nullptr) throw std::invalid_argument("FitKernelHyperparameters: null hyper");
+  const KernelEvidenceObjective objective(kernel, X, Y, options, *hyper);
+  Vector x = objective.Flatten(*hyper);
+  std::vector<std::string> bounds_names;
+  const int num_kernel = options.optimize_kernel_parameters ? kernel.num_parameters() : 0;
+  for (int i = 0; i < objective.num_parameters(); ++i) {
+    const bool noise = options.optimize_noise && i == num_kernel;
+    bounds_names.push_back(i < num_kernel ? "kernel_parameter_bounds"
+                           : noise        ? "noise_bounds"
+                                          : "output_scale_bounds");
+  }
+  RequireStartInside("FitKernelHyperparameters", x, objective.lower_bounds(),
+                     objective.upper_bounds(), objective.names(), bounds_names);
+  MaximumLikelihoodSummary summary = Minimize(objective, options, objective.names(), &x);
+  if (summary.usable()) *hyper = objective.ToHyperparameters(x);
+  return summary;
+}
+
+}  // namespace structgp
