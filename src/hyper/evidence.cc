@@ -1,6 +1,7 @@
 #include "structgp/hyper/evidence.h"
 
 #include <cmath>
+#include <algorithm>
 #include <stdexcept>
 
 #include "structgp/core/validate.h"
@@ -53,6 +54,49 @@ Status WeightSpaceEvidence::Evaluate(const Hyperparameters& hyper, double* lml,
   *lml = value;
   if (gradient != nullptr) *gradient = ChainRule(*map_, hyper, per_feature);
   return Status::kOk;
+}
+
+Hyperparameters ProfileNoiseAndScales(const WeightSpaceEvidence& evidence,
+                                      const Hyperparameters& start, double log_noise_min,
+                                      double log_noise_max) {
+  const double m = evidence.statistics().count;
+  // Profile: at fixed sigma_n, with unit scales, d log p / d log s_j = quad_j - m = 0 gives
+  // s_j^2 = quad_j / m, where quad_j = y_j^T C^{-1} y_j (unit scale) is the gradient + m.
+  auto profiled = [&](double log_noise, Hyperparameters* h) {
+    h->log_noise_std = log_noise;
+    h->log_output_scale.setZero();
+    double value = 0.0;
+    Hyperparameters g;
+    if (evidence.Evaluate(*h, &value, &g) != Status::kOk) return -HUGE_VAL;
+    for (Eigen::Index j = 0; j < h->log_output_scale.size(); ++j) {
+      const double quad = g.log_output_scale[j] + m;
+      h->log_output_scale[j] = 0.5 * std::log(std::max(quad / m, 1e-300));
+    }
+    if (evidence.Evaluate(*h, &value) != Status::kOk) return -HUGE_VAL;
+    return value;
+  };
+  Hyperparameters h = start;
+  const double golden = 0.6180339887498949;
+  double a = log_noise_min, b = log_noise_max;
+  double c = b - golden * (b - a), d = a + golden * (b - a);
+  double fc = profiled(c, &h), fd = profiled(d, &h);
+  for (int it = 0; it < 60 && b - a > 1e-4; ++it) {
+    if (fc >= fd) {
+      b = d, d = c, fd = fc;
+      c = b - golden * (b - a);
+      fc = profiled(c, &h);
+    } else {
+      a = c, c = d, fc = fd;
+      d = a + golden * (b - a);
+      fd = profiled(d, &h);
+    }
+  }
+  const double best = fc >= fd ? c : d;
+  if (!std::isfinite(profiled(best, &h))) {
+    throw std::runtime_error("ProfileNoiseAndScales: no noise level in the range gives a "
+                             "positive definite posterior");
+  }
+  return h;
 }
 
 }  // namespace structgp

@@ -11,9 +11,9 @@
 ///     mean_j(x) = p^T beta_j,  latent variance_j(x) = s_j^2 (k(x, x) - p^T p),  p = L^{-1} k_X(x).
 /// Adding a point is one forward substitution, O(m^2); a batch fit is O(m^3).
 ///
-/// Real-time contract: after Reserve(capacity), Add, Predict, PredictWithVariance,
-/// AddAndPredict and Truncate allocate nothing and throw nothing (the kernel's Evaluate must
-/// not allocate either); bad input gives kInvalidInput, a full model kCapacityExceeded, and a
+/// Real-time contract: after Reserve(capacity), Add, Predict, PredictWithVariance and
+/// AddAndPredict allocate nothing and throw nothing (the kernel's Evaluate must not allocate
+/// either); bad input gives kInvalidInput, a full model kCapacityExceeded, and a
 /// point whose conditional variance is not positive (a duplicate with tiny noise)
 /// kNotPositiveDefinite, each leaving the model unchanged. A model is not safe for concurrent
 /// calls, including const ones (they share the model's scratch vector and the kernel's).
@@ -134,10 +134,10 @@ class KernelGP {
   // beta_.topRows(size_) = L^{-1} Y. Storage beyond size_ is scratch.
   int size_ = 0;
   int capacity_ = 0;
-  Vector packed_;   // L, capacity*(capacity+1)/2
-  Matrix inputs_;   // input_dim x capacity (column i = point i, contiguous for the kernel)
-  Matrix Y_;        // capacity x P
-  Matrix beta_;     // capacity x P, L^{-1} Y (each output's column contiguous)
+  Vector packed_;  // L, capacity*(capacity+1)/2
+  Matrix inputs_;  // input_dim x capacity (column i = point i, contiguous for the kernel)
+  Matrix Y_;       // capacity x P
+  Matrix beta_;    // capacity x P, L^{-1} Y (each output's column contiguous)
 
   mutable Vector work_k_;  // kernel column / forward-solve result of a prediction (capacity)
 };

@@ -1,0 +1,57 @@
+#ifndef STRUCTGP_MODEL_MODEL_SPEC_H_
+#define STRUCTGP_MODEL_MODEL_SPEC_H_
+
+/// @file
+/// What a robot model is made of, parsed once from the text users write at the command line
+/// ("pol+fri" and "coulomb@2,viscous,cogging@3:period=0.3") into typed values.
+///
+/// Model grammar:  base ["+fri"]   with base one of pol, rbf, rbfs, motor.
+/// Effect grammar: item ("," item)*,  item = name ["@" joints] [":" key "=" value (";" key "=" value)*]
+///                 joints = j ("/" j)*  (1-based; no "@" means every joint)
+/// e.g. "coulomb@2", "viscous", "cogging@3:period=0.3;harmonics=2", "stribeck@1/2:velocity=0.05".
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace structgp {
+
+enum class BaseModel {
+  kPol,    ///< the structured kernel k_pol (paper eq. 17)
+  kRbf,    ///< squared-exponential kernel on (q, qd, qdd) (eq. 30)
+  kRbfs,   ///< squared-exponential kernel on (cos q, sin q, qd, qdd) (eq. 33)
+  kMotor,  ///< the linear motor model c1 qdd + c2 qd per joint (eq. 54)
+};
+
+/// "pol", "rbf", "rbfs", "motor".
+const char* ToString(BaseModel base);
+
+struct EffectSpec {
+  std::string name;                      ///< as in EffectNames()
+  std::vector<int> joints;               ///< 1-based; empty = every joint
+  std::map<std::string, double> params;  ///< e.g. {"period", 0.3}
+};
+
+struct ModelSpec {
+  BaseModel base = BaseModel::kPol;
+  /// The paper's semi-parametric friction (eq. 41): viscous, Coulomb and offset bases.
+  bool friction = false;
+  std::vector<EffectSpec> effects;
+};
+
+/// Parses "pol", "pol+fri", ... Throws std::invalid_argument naming the bad part and listing
+/// what is accepted.
+ModelSpec ParseModelSpec(const std::string& model);
+/// Parses an effect list. Effect names are checked against the registry, parameters by the
+/// effect's own factory. Errors name the item and its character position (1-based).
+std::vector<EffectSpec> ParseEffectList(const std::string& text);
+
+/// Canonical text of a model ("pol+fri") and of an effect list (round-trips through the
+/// parsers).
+std::string ToString(const ModelSpec& spec);
+std::string ToString(const std::vector<EffectSpec>& effects);
+std::string ToString(const EffectSpec& effect);
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_MODEL_MODEL_SPEC_H_

@@ -1,0 +1,126 @@
+#ifndef STRUCTGP_MODEL_ROBOT_MODEL_H_
+#define STRUCTGP_MODEL_ROBOT_MODEL_H_
+
+/// @file
+/// An inverse-dynamics model of an N-joint robot built from a ModelSpec: a base kernel (pol,
+/// rbf, rbfs or motor), the paper's friction bases when asked ("+fri") and any effects, each
+/// added with a broad prior. Inputs are states x = (q, qd, qdd) (3N values, joints in order),
+/// followed by the time t in seconds when an effect uses it; outputs are the N joint torques.
+///
+/// Feature-map bases (pol, motor) become one SumFeatureMap; the model then runs in weight
+/// space or function space (GaussianProcess chooses), and every prediction can be split into
+/// physical components — pol's inertial M(q)qdd, Coriolis/centrifugal C(q,qd)qd and gravity
+/// G(q) blocks, friction, and each effect — each with its own posterior variance.
+/// rbf and rbfs have no finite map: they run in function space, with friction and effects
+/// added as a feature-map kernel, and give no component split.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "structgp/core/status.h"
+#include "structgp/core/types.h"
+#include "structgp/feature/feature_map.h"
+#include "structgp/hyper/hyperparameters.h"
+#include "structgp/kernel/kernel.h"
+#include "structgp/model/gaussian_process.h"
+#include "structgp/model/model_spec.h"
+
+namespace structgp {
+
+struct RobotModelOptions {
+  /// Weight space when D <= m, else function space; or forced.
+  Form form = Form::kAuto;
+  /// Velocity scale sigma_f of the Coulomb basis tanh(qd / sigma_f) of "+fri", rad/s.
+  double friction_width = 0.01;
+  /// Prior standard deviation of friction and effect coefficients, relative to each joint's
+  /// torque scale: a broad prior (the semi-parametric sum of the paper, eqs. 43-44).
+  double broad_prior_std = 10.0;
+};
+
+/// One physical part of a prediction, for one output.
+struct Component {
+  std::string name;       ///< "inertial", "coriolis", "gravity", "friction", "coulomb@2", ...
+  Vector mean;            ///< per joint (N)
+  Vector latent_variance; ///< per joint (N)
+};
+
+class RobotModel {
+ public:
+  /// Throws std::invalid_argument when the spec cannot be built for num_joints (an effect on
+  /// a joint > N, a time effect with an rbf base, pol with N > kMaxPolJoints, ...).
+  RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOptions& options = {});
+
+  const ModelSpec& spec() const { return spec_; }
+  const RobotModelOptions& options() const { return options_; }
+  int num_joints() const { return num_joints_; }
+  /// 3N, or 3N + 1 when an effect uses the time.
+  int input_dim() const { return 3 * num_joints_ + (uses_time_ ? 1 : 0); }
+  bool uses_time() const { return uses_time_; }
+
+  /// The feature map (null for rbf/rbfs bases).
+  const std::shared_ptr<const FeatureMap>& feature_map() const { return map_; }
+  /// Feature-map hyper-parameters in use (feature-map bases only).
+  const Hyperparameters& hyperparameters() const { return hyper_; }
+  /// The kernel of rbf/rbfs models (null for feature-map bases).
+  const Kernel* kernel() const { return kernel_.get(); }
+
+  /// Default hyper-parameters for torques Y (m x N): output scales from the torque spread,
+  /// noise 10% of it, broad priors on friction and effects, the base's default shape.
+  Hyperparameters DefaultHyperparameters(const ConstMatrixRef& Y) const;
+
+  /// Fits X (m x input_dim) and Y (m x N) with the given hyper-parameters (feature-map bases)
+  /// or the kernel's current parameters plus noise/output scales from hyper (rbf bases).
+  /// Throws std::invalid_argument on bad sizes or values; a numerical failure is a status.
+  Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y, const Hyperparameters& hyper);
+  /// Fits with DefaultHyperparameters(Y).
+  Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
+
+  bool fitted() const { return gp_ != nullptr; }
+  const GaussianProcess& gp() const;
+  GaussianProcess& mutable_gp();
+
+  /// Predictive mean (N) and variances at x; see GaussianProcess.
+  Status Predict(const ConstVectorRef& x, VectorRef mean) const;
+  Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
+                             VectorRef noisy_variance) const;
+  /// Means (m x N) and, if not null, latent standard deviations (m x N) for every row of X.
+  void PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std = nullptr) const;
+
+  /// Names of the physical components, in order (weight-space feature-map models only).
+  std::vector<std::string> ComponentNames() const;
+  /// Splits the prediction at x into components (their means add up to the full mean).
+  /// Weight-space feature-map models only: otherwise returns kInvalidInput.
+  Status PredictComponents(const ConstVectorRef& x, std::vector<Component>* components) const;
+
+  /// Fitted coefficient of a named feature (e.g. "coulomb@2", "viscous@1") for joint `joint`
+  /// (1-based), with its posterior standard deviation. Weight space only; throws when the
+  /// feature does not exist.
+  std::pair<double, double> Coefficient(const std::string& feature, int joint) const;
+  /// Names of all features that have a physical meaning (friction and effect bases).
+  std::vector<std::string> ParametricFeatureNames() const;
+
+ private:
+  struct Part {
+    std::string name;
+    int begin;
+    int size;
+  };
+  void BuildFeatureMap();
+  void BuildKernel();
+
+  ModelSpec spec_;
+  int num_joints_;
+  RobotModelOptions options_;
+  bool uses_time_ = false;
+  std::shared_ptr<const FeatureMap> map_;
+  std::vector<Part> parts_;                                   // component ranges in phi
+  std::vector<std::pair<std::string, int>> parametric_names_;  // feature name -> index
+  std::unique_ptr<Kernel> kernel_;
+  Hyperparameters hyper_;
+  std::unique_ptr<GaussianProcess> gp_;
+};
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_MODEL_ROBOT_MODEL_H_

@@ -1,0 +1,463 @@
+#include "structgp/diagnose/diagnosis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+#include <nlohmann/json.hpp>
+
+#include "structgp/core/validate.h"
+#include "structgp/feature/effect_feature_map.h"
+#include "structgp/feature/effects.h"
+#include "structgp/hyper/evidence.h"
+#include "structgp/hyper/hyperparameters.h"
+#include "structgp/model/sufficient_statistics.h"
+#include "structgp/model/weight_space_gp.h"
+
+namespace structgp {
+namespace {
+
+using Index = std::vector<int>;
+
+constexpr double kTwoPi = 6.283185307179586;
+
+struct Candidate {
+  std::string effect;
+  int joint = 0;  // 1-based
+  EffectParameters params;
+  Index cols;      // columns in the design matrix F
+  std::string spec;
+  bool alive = true;
+};
+
+// Folds: contiguous, in time order, sizes differing by at most one.
+std::vector<std::pair<int, int>> Folds(int m, int k) {
+  std::vector<std::pair<int, int>> folds;
+  for (int f = 0; f < k; ++f) {
+    const int begin = static_cast<int>(static_cast<long>(m) * f / k);
+    const int end = static_cast<int>(static_cast<long>(m) * (f + 1) / k);
+    folds.emplace_back(begin, end - begin);
+  }
+  return folds;
+}
+
+// Period of a sinusoid in q that best explains r (least squares on sin, cos, 1).
+double EstimateCoggingPeriod(const Vector& q, const Vector& r, double lo, double hi) {
+  const int n = static_cast<int>(q.size());
+  auto explained = [&](double period) {
+    Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int i = 0; i < n; ++i) {
+      const double a = kTwoPi * q[i] / period;
+      const Eigen::Vector3d f(std::sin(a), std::cos(a), 1.0);
+      G += f * f.transpose();
+      b += f * r[i];
+    }
+    G.diagonal().array() += 1e-9 * (G.trace() + 1.0);
+    return b.dot(G.ldlt().solve(b));
+  };
+  double best = lo, best_value = -1.0;
+  const int grid = 400;
+  for (int g = 0; g < grid; ++g) {
+    const double p = lo * std::pow(hi / lo, g / (grid - 1.0));
+    const double v = explained(p);
+    if (v > best_value) best_value = v, best = p;
+  }
+  // Refine around the best grid point.
+  const double step = std::pow(hi / lo, 1.0 / (grid - 1.0));
+  double a = best / step, c = best * step;
+  for (int it = 0; it < 40; ++it) {
+    const double m1 = a + (c - a) / 3, m2 = c - (c - a) / 3;
+    if (explained(m1) > explained(m2)) c = m2; else a = m1;
+  }
+  return 0.5 * (a + c);
+}
+
+std::vector<Concentration> Concentrations(const Vector& r, const Matrix& vars,
+                                          const std::vector<std::string>& names, int bins) {
+  const int m = static_cast<int>(r.size());
+  const double mean = r.mean();
+  const double total = (r.array() - mean).square().sum();
+  std::vector<Concentration> out;
+  if (total <= 0.0 || m < 2 * bins) return out;
+  for (int v = 0; v < vars.cols(); ++v) {
+    std::vector<int> order(static_cast<size_t>(m));
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return vars(a, v) < vars(b, v); });
+    Concentration c;
+    c.variable = names[static_cast<size_t>(v)];
+    double between = 0.0;
+    for (int b = 0; b < bins; ++b) {
+      const int begin = m * b / bins, end = m * (b + 1) / bins;
+      double s = 0.0, ss = 0.0;
+      for (int i = begin; i < end; ++i) {
+        s += r[order[i]] - mean;
+        ss += r[order[i]] * r[order[i]];
+      }
+      const int count = end - begin;
+      between += s * s / count;
+      const double rms = std::sqrt(ss / count);
+      if (rms > c.bin_rms) {
+        c.bin_rms = rms;
+        c.bin_low = vars(order[begin], v);
+        c.bin_high = vars(order[end - 1], v);
+      }
+    }
+    c.explained = between / total;
+    out.push_back(c);
+  }
+  std::sort(out.begin(), out.end(),
+            [](const Concentration& a, const Concentration& b) { return a.explained > b.explained; });
+  if (out.size() > 3) out.resize(3);
+  return out;
+}
+
+// One fit of the base columns B on some statistics, kept to score candidates.
+struct BaseFit {
+  Eigen::LLT<Matrix> llt;  // of A_B
+  Matrix W;                // A_B^{-1} b_B (|B| x P)
+  bool ok = false;
+};
+
+BaseFit FitBase(const Matrix& G, const Matrix& cross, const Index& B, const Vector& lambda,
+                double s2n) {
+  BaseFit fit;
+  Matrix A = G(B, B);
+  for (size_t i = 0; i < B.size(); ++i) A(i, i) += s2n / lambda[B[i]];
+  fit.llt.compute(A);
+  if (fit.llt.info() != Eigen::Success) return fit;
+  fit.W = fit.llt.solve(Matrix(cross(B, Eigen::all)));
+  fit.ok = fit.W.allFinite();
+  return fit;
+}
+
+// Adds the columns E to a base fit: Z (Schur complement), u, and the new weights.
+struct Augmented {
+  Eigen::LLT<Matrix> z;
+  Matrix u;    // |E| x P
+  Matrix V;    // L^{-1} G(B, E)
+  bool ok = false;
+};
+
+Augmented Augment(const BaseFit& base, const Matrix& G, const Matrix& cross, const Index& B,
+                  const Index& E, const Vector& lambda, double s2n) {
+  Augmented a;
+  const Matrix GBE = G(B, E);
+  a.V = base.llt.matrixL().solve(GBE);
+  Matrix Z = G(E, E);
+  for (size_t i = 0; i < E.size(); ++i) Z(i, i) += s2n / lambda[E[i]];
+  Z.noalias() -= a.V.transpose() * a.V;
+  a.z.compute(Z);
+  if (a.z.info() != Eigen::Success) return a;
+  a.u = Matrix(cross(E, Eigen::all)) - GBE.transpose() * base.W;
+  a.ok = a.u.allFinite();
+  return a;
+}
+
+}  // namespace
+
+Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                   const Vector& t, const DiagnosisOptions& options) {
+  if (!model.feature_map() || !model.fitted()) {
+    throw std::invalid_argument(
+        "Diagnose: needs a fitted model with a feature map (base pol or motor)");
+  }
+  const int N = model.num_joints();
+  const int m = static_cast<int>(X.rows());
+  RequireSize("Diagnose X", X.cols(), model.input_dim(), "columns");
+  RequireSize("Diagnose Y", Y.cols(), N, "columns (joints)");
+  RequireSize("Diagnose Y", Y.rows(), m, "rows (as in X)");
+  if (t.size() != 0) RequireSize("Diagnose t", t.size(), m, "entries (rows of X)");
+  RequireFinite("Diagnose X", X);
+  RequireFinite("Diagnose Y", Y);
+  if (t.size() != 0) RequireFinite("Diagnose t", t);
+  if (options.folds < 2 || m < 4 * options.folds) {
+    throw std::invalid_argument("Diagnose: need at least " + std::to_string(4 * options.folds) +
+                                " rows for " + std::to_string(options.folds) +
+                                "-fold blocked cross-validation, got " + std::to_string(m));
+  }
+
+  Diagnosis out;
+  out.num_samples = m;
+  out.model = ToString(model.spec());
+  if (!model.spec().effects.empty()) out.model += " + " + ToString(model.spec().effects);
+
+  // ---- residuals of the model as it is -----------------------------------------------------
+  Matrix mean;
+  model.PredictRows(X, &mean);
+  const Matrix R = Y - mean;
+  Matrix vars(m, 3 * N + (t.size() ? 1 : 0));
+  vars.leftCols(3 * N) = X.leftCols(3 * N);
+  std::vector<std::string> var_names;
+  for (const char* prefix : {"q", "qd", "qdd"}) {
+    for (int j = 1; j <= N; ++j) var_names.push_back(prefix + std::to_string(j));
+  }
+  if (t.size()) {
+    vars.col(3 * N) = t;
+    var_names.push_back("t");
+  }
+  for (int j = 0; j < N; ++j) {
+    JointFinding f;
+    f.joint = j + 1;
+    const Vector r = R.col(j);
+    f.rms = std::sqrt(r.squaredNorm() / m);
+    const double var_y = (Y.col(j).array() - Y.col(j).mean()).square().mean();
+    f.nmse = var_y > 0 ? f.rms * f.rms / var_y : 0.0;
+    const Vector dr = r.tail(m - 1) - r.head(m - 1);
+    f.noise_std_estimate = std::sqrt(dr.squaredNorm() / (2.0 * (m - 1)));
+    f.concentrations = Concentrations(r, vars, var_names, options.bins);
+    out.joints.push_back(f);
+  }
+
+  // ---- candidates -----------------------------------------------------------------------------
+  const auto& spec = model.spec();
+  auto model_has = [&](const std::string& name, int joint) {
+    if (spec.friction && (name == "viscous" || name == "coulomb" || name == "offset")) return true;
+    for (const auto& e : spec.effects) {
+      if (e.name != name) continue;
+      if (e.joints.empty() || name == "offset") return true;
+      if (std::find(e.joints.begin(), e.joints.end(), joint) != e.joints.end()) return true;
+    }
+    return false;
+  };
+  // Inputs of the candidate maps: the state and the time.
+  Matrix Xt(m, 3 * N + 1);
+  Xt.leftCols(3 * N) = X.leftCols(3 * N);
+  Xt.col(3 * N) = t.size() ? t : Vector::Zero(m);
+  const double t0 = t.size() ? t.minCoeff() : 0.0;
+  const double span = t.size() ? std::max(t.maxCoeff() - t0, 1e-9) : 1.0;
+
+  Matrix Phi;
+  model.feature_map()->EvaluateRows(X, &Phi);
+  Matrix refit_residual;
+  {
+    const Hyperparameters& h = model.hyperparameters();
+    WeightSpaceGP refit(PriorVariance(*model.feature_map(), h), h.noise_variance(), N,
+                        h.output_scales());
+    if (refit.Fit(Phi, Y) != Status::kOk) {
+      throw std::runtime_error("Diagnose: the model could not be refitted on these data "
+                               "(posterior precision not positive definite)");
+    }
+    refit_residual = Y - Phi * refit.weights();
+  }
+
+  std::vector<Candidate> candidates;
+  std::vector<Matrix> blocks;  // candidate columns, in order
+  int next_col = model.feature_map()->dim();
+  auto add_candidate = [&](const std::string& name, int joint, EffectParameters params) {
+    std::shared_ptr<const Effect> effect = MakeEffect(name, params);
+    EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
+    Matrix E;
+    map.EvaluateRows(Xt, &E);
+    Candidate c;
+    c.effect = name;
+    c.joint = joint;
+    c.params = params;
+    EffectSpec es{name, {joint}, params};
+    c.spec = ToString(es);
+    for (int k = 0; k < E.cols(); ++k) c.cols.push_back(next_col++);
+    blocks.push_back(std::move(E));
+    candidates.push_back(std::move(c));
+  };
+  for (const auto& name : options.candidates) {
+    for (int j = 1; j <= N; ++j) {
+      if (model_has(name, j)) continue;
+      if (name == "drift") {
+        if (t.size() == 0) continue;
+        add_candidate(name, j, {{"t0", t0}, {"span", span}});
+      } else if (name == "cogging") {
+        // The period is estimated from what a refit of the model on these data cannot
+        // explain (the model's own residual here also carries its extrapolation error).
+        const double period = EstimateCoggingPeriod(X.col(j - 1), refit_residual.col(j - 1),
+                                                    options.min_cogging_period,
+                                                    options.max_cogging_period);
+        // The residual of a refit is distorted where the base absorbed part of the ripple, so
+        // the estimate is refined by evidence: candidates on a +-15% grid around it.
+        for (int g = -6; g <= 6; ++g) add_candidate(name, j, {{"period", period * (1.0 + 0.025 * g)}});
+      } else if (name == "stribeck") {
+        // Stribeck velocity on a grid relative to the joint's velocity spread.
+        const double qd_scale = std::max(1e-6, X.col(N + j - 1).cwiseAbs().maxCoeff());
+        for (double rel : {0.02, 0.05, 0.1, 0.2}) {
+          add_candidate(name, j, {{"velocity", rel * qd_scale}});
+        }
+      } else {
+        add_candidate(name, j, {});
+      }
+    }
+  }
+
+  // ---- design matrix and its statistics ------------------------------------------------------
+  Matrix F(m, next_col);
+  F.leftCols(Phi.cols()) = Phi;
+  {
+    int col = static_cast<int>(Phi.cols());
+    for (const auto& E : blocks) {
+      F.middleCols(col, E.cols()) = E;
+      col += static_cast<int>(E.cols());
+    }
+  }
+  const auto folds = Folds(m, options.folds);
+  // Statistics of each fold; the total is their sum, a fold's training set the total minus it.
+  std::vector<Matrix> fold_gram, fold_cross;
+  Matrix G_total = Matrix::Zero(next_col, next_col), cross_total = Matrix::Zero(next_col, N);
+  for (const auto& [begin, count] : folds) {
+    SufficientStatistics s(next_col, N);
+    s.Accumulate(F.middleRows(begin, count), Y.middleRows(begin, count));
+    Matrix G = s.gram.selfadjointView<Eigen::Lower>();
+    G_total += G;
+    cross_total += s.cross;
+    fold_gram.push_back(std::move(G));
+    fold_cross.push_back(std::move(s.cross));
+  }
+
+  // The noise level and output scales are re-estimated on these data by evidence (the model's
+  // prior structure kept), so that the evidence gains below are calibrated to this log.
+  Hyperparameters hyper = model.hyperparameters();
+  {
+    const int D = model.feature_map()->dim();
+    SufficientStatistics base_stats(D, N);
+    base_stats.gram = G_total.topLeftCorner(D, D);
+    base_stats.cross = cross_total.topRows(D);
+    base_stats.y_squared = Y.colwise().squaredNorm().transpose();
+    base_stats.count = m;
+    WeightSpaceEvidence evidence(model.feature_map(), std::move(base_stats));
+    hyper = ProfileNoiseAndScales(evidence, hyper);
+  }
+  out.noise_std = hyper.noise_variance() > 0 ? std::sqrt(hyper.noise_variance()) : 0.0;
+  Vector lambda(next_col);
+  lambda.head(model.feature_map()->dim()) = PriorVariance(*model.feature_map(), hyper);
+  const double broad = model.options().broad_prior_std;
+  lambda.tail(next_col - model.feature_map()->dim()).setConstant(broad * broad);
+  const double s2n = hyper.noise_variance();
+  const Vector s2 = hyper.output_scales().cwiseAbs2();
+
+  // ---- greedy forward selection -----------------------------------------------------------------
+  Index B(static_cast<size_t>(model.feature_map()->dim()));
+  std::iota(B.begin(), B.end(), 0);
+  const int num_fits = options.folds + 1;  // fit 0: all data; fit f + 1: all but fold f
+  std::vector<Matrix> Gs(static_cast<size_t>(num_fits)), crosses(static_cast<size_t>(num_fits));
+  for (int fit = 0; fit < num_fits; ++fit) {
+    Gs[fit] = fit == 0 ? G_total : Matrix(G_total - fold_gram[fit - 1]);
+    crosses[fit] = fit == 0 ? cross_total : Matrix(cross_total - fold_cross[fit - 1]);
+  }
+  while (static_cast<int>(out.suggestions.size()) < options.max_suggestions) {
+    std::vector<BaseFit> base(static_cast<size_t>(num_fits));
+    for (int fit = 0; fit < num_fits; ++fit) {
+      base[fit] = FitBase(Gs[fit], crosses[fit], B, lambda, s2n);
+      if (!base[fit].ok) {
+        throw std::runtime_error("Diagnose: the model's posterior could not be factorised on "
+                                 "these data (not positive definite)");
+      }
+    }
+    // Held-out squared error per joint of the model refitted without the candidate.
+    Vector sse_base = Vector::Zero(N);
+    for (int f = 0; f < options.folds; ++f) {
+      const auto [begin, count] = folds[f];
+      const Matrix pred = F(Eigen::seqN(begin, count), B) * base[f + 1].W;
+      sse_base += (Y.middleRows(begin, count) - pred).colwise().squaredNorm().transpose();
+    }
+    int best = -1;
+    Suggestion best_s;
+    for (size_t ci = 0; ci < candidates.size(); ++ci) {
+      Candidate& c = candidates[ci];
+      if (!c.alive) continue;
+      const int j = c.joint - 1;
+      const Augmented aug = Augment(base[0], Gs[0], crosses[0], B, c.cols, lambda, s2n);
+      if (!aug.ok) continue;
+      // Gain in log evidence of joint j's torque when the columns are added (Schur
+      // complement Z of the base precision; docs/diagnosis.md):
+      //   0.5 u_j^T Z^{-1} u_j / (sigma^2 s_j^2) - 0.5 (log|Z| + log|Lambda_E| - k log sigma^2).
+      const Vector zu = aug.z.solve(Vector(aug.u.col(j)));
+      const double log_det_z = 2.0 * Matrix(aug.z.matrixL()).diagonal().array().log().sum();
+      double log_lambda_e = 0.0;
+      for (int col : c.cols) log_lambda_e += std::log(lambda[col]);
+      const double k = static_cast<double>(c.cols.size());
+      const double gain = 0.5 * aug.u.col(j).dot(zu) / (s2n * s2[j]) -
+                          0.5 * (log_det_z + log_lambda_e - k * std::log(s2n));
+      // Held-out error of joint j with the candidate, from the same fold fits.
+      double sse_aug = 0.0;
+      bool ok = true;
+      for (int f = 0; f < options.folds && ok; ++f) {
+        const auto [begin, count] = folds[f];
+        const Augmented a = Augment(base[f + 1], Gs[f + 1], crosses[f + 1], B, c.cols, lambda, s2n);
+        if (!a.ok) {
+          ok = false;
+          break;
+        }
+        const Vector we = a.z.solve(Vector(a.u.col(j)));
+        const Vector wb =
+            base[f + 1].W.col(j) - base[f + 1].llt.matrixU().solve(Vector(a.V * we));
+        const Vector pred = F(Eigen::seqN(begin, count), B) * wb +
+                            F(Eigen::seqN(begin, count), c.cols) * we;
+        sse_aug += (Y.col(j).segment(begin, count) - pred).squaredNorm();
+      }
+      if (!ok) continue;
+      const double rms_before = std::sqrt(sse_base[j] / m);
+      const double rms_after = std::sqrt(sse_aug / m);
+      const bool significant = gain > options.min_log_evidence_gain &&
+                               rms_after < (1.0 - options.min_relative_rms_gain) * rms_before;
+      if (significant && (best < 0 || gain > best_s.score)) {
+        best = static_cast<int>(ci);
+        best_s.effect = c.effect;
+        best_s.joint = c.joint;
+        best_s.score = gain;
+        best_s.rms_before = rms_before;
+        best_s.rms_after = rms_after;
+        best_s.params = MakeEffect(c.effect, c.params)->parameters();
+        best_s.spec = c.spec;
+      }
+    }
+    if (best < 0) break;
+    out.suggestions.push_back(best_s);
+    Candidate& chosen = candidates[static_cast<size_t>(best)];
+    B.insert(B.end(), chosen.cols.begin(), chosen.cols.end());
+    for (auto& c : candidates) {
+      if (c.effect == chosen.effect && c.joint == chosen.joint) c.alive = false;
+    }
+  }
+  std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
+                   [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
+  return out;
+}
+
+std::string ToJson(const Diagnosis& d) {
+  nlohmann::ordered_json j;
+  j["model"] = d.model;
+  j["num_samples"] = d.num_samples;
+  j["joints"] = nlohmann::ordered_json::array();
+  for (const auto& f : d.joints) {
+    nlohmann::ordered_json jf;
+    jf["joint"] = f.joint;
+    jf["rms"] = f.rms;
+    jf["nmse"] = f.nmse;
+    jf["noise_std_estimate"] = f.noise_std_estimate;
+    jf["concentrations"] = nlohmann::ordered_json::array();
+    for (const auto& c : f.concentrations) {
+      jf["concentrations"].push_back({{"variable", c.variable},
+                                      {"explained", c.explained},
+                                      {"bin_low", c.bin_low},
+                                      {"bin_high", c.bin_high},
+                                      {"bin_rms", c.bin_rms}});
+    }
+    j["joints"].push_back(jf);
+  }
+  j["suggestions"] = nlohmann::ordered_json::array();
+  for (const auto& s : d.suggestions) {
+    nlohmann::ordered_json js;
+    js["effect"] = s.effect;
+    js["joint"] = s.joint;
+    js["score"] = s.score;
+    js["rms_before"] = s.rms_before;
+    js["rms_after"] = s.rms_after;
+    js["params"] = nlohmann::ordered_json::object();
+    for (const auto& [k, v] : s.params) js["params"][k] = v;
+    js["spec"] = s.spec;
+    j["suggestions"].push_back(js);
+  }
+  return j.dump(2) + "\n";
+}
+
+}  // namespace structgp

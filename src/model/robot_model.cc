@@ -1,0 +1,284 @@
+#include "structgp/model/robot_model.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "structgp/core/validate.h"
+#include "structgp/feature/effect_feature_map.h"
+#include "structgp/feature/effects.h"
+#include "structgp/feature/friction_feature_map.h"
+#include "structgp/feature/motor_feature_map.h"
+#include "structgp/feature/pol_feature_map.h"
+#include "structgp/feature/sum_feature_map.h"
+#include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/rbf_kernel.h"
+#include "structgp/kernel/sum_kernel.h"
+
+namespace structgp {
+
+RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOptions& options)
+    : spec_(spec), num_joints_(num_joints), options_(options) {
+  if (num_joints_ < 1) {
+    throw std::invalid_argument("RobotModel: num_joints must be >= 1, got " +
+                                std::to_string(num_joints_));
+  }
+  RequireInRange("RobotModelOptions.friction_width", options_.friction_width, 0.0, 1e9);
+  RequireInRange("RobotModelOptions.broad_prior_std", options_.broad_prior_std, 0.0, 1e12);
+  for (const auto& e : spec_.effects) {
+    if (MakeEffect(e.name, e.params)->uses_time()) uses_time_ = true;
+    for (int j : e.joints) {
+      if (j < 1 || j > num_joints_) {
+        throw std::invalid_argument("effect '" + ToString(e) + "' names joint " +
+                                    std::to_string(j) + ", but the robot has " +
+                                    std::to_string(num_joints_) + " joints");
+      }
+    }
+  }
+  if (spec_.base == BaseModel::kPol || spec_.base == BaseModel::kMotor) {
+    BuildFeatureMap();
+  } else {
+    if (uses_time_) {
+      throw std::invalid_argument("model '" + ToString(spec_) +
+                                  "': time-dependent effects (drift) need a feature-map base "
+                                  "(pol or motor)");
+    }
+    BuildKernel();
+  }
+}
+
+namespace {
+
+std::shared_ptr<const FeatureMap> ExtrasMap(const ModelSpec& spec, int num_joints,
+                                            double friction_width, bool with_time,
+                                            std::vector<std::string>* part_names) {
+  std::vector<std::shared_ptr<const FeatureMap>> parts;
+  if (spec.friction) {
+    std::shared_ptr<const FeatureMap> fri =
+        std::make_shared<FrictionFeatureMap>(num_joints, FrictionOptions{friction_width, true});
+    parts.push_back(with_time ? std::make_shared<IgnoreTrailingInputs>(fri, 1) : fri);
+    part_names->push_back("friction");
+  }
+  for (const auto& e : spec.effects) {
+    std::shared_ptr<const Effect> effect = MakeEffect(e.name, e.params);
+    parts.push_back(std::make_shared<EffectFeatureMap>(num_joints, effect, e.joints, with_time));
+    part_names->push_back(ToString(e));
+  }
+  if (parts.empty()) return nullptr;
+  return std::make_shared<SumFeatureMap>(parts);
+}
+
+}  // namespace
+
+void RobotModel::BuildFeatureMap() {
+  const int N = num_joints_;
+  std::vector<std::shared_ptr<const FeatureMap>> parts;
+  std::vector<std::string> names;
+  std::shared_ptr<const FeatureMap> base;
+  if (spec_.base == BaseModel::kPol) {
+    if (N > kMaxPolJoints) {
+      throw std::invalid_argument("model 'pol' has an explicit feature map for at most " +
+                                  std::to_string(kMaxPolJoints) + " joints, got " +
+                                  std::to_string(N));
+    }
+    base = std::make_shared<PolFeatureMap>(N);
+  } else {
+    base = std::make_shared<MotorFeatureMap>(N);
+  }
+  parts.push_back(uses_time_ ? std::make_shared<IgnoreTrailingInputs>(base, 1) : base);
+  // Components: the base's own blocks (pol: inertial, coriolis, gravity).
+  for (const auto& b : base->blocks()) parts_.push_back(Part{b.name, b.begin, b.size});
+  std::vector<std::string> extra_names;
+  auto extras = ExtrasMap(spec_, N, options_.friction_width, uses_time_, &extra_names);
+  if (extras) {
+    parts.push_back(extras);
+    const auto& sum = static_cast<const SumFeatureMap&>(*extras);
+    for (int i = 0; i < sum.num_parts(); ++i) {
+      const int begin = base->dim() + sum.part_begin(i);
+      parts_.push_back(Part{extra_names[static_cast<size_t>(i)], begin, sum.part(i).dim()});
+      // Named coefficients of friction and effect bases.
+      std::vector<std::string> fnames;
+      const FeatureMap* inner = &sum.part(i);
+      if (auto* ignore = dynamic_cast<const IgnoreTrailingInputs*>(inner)) inner = &ignore->inner();
+      if (auto* fri = dynamic_cast<const FrictionFeatureMap*>(inner)) fnames = fri->feature_names();
+      if (auto* eff = dynamic_cast<const EffectFeatureMap*>(inner)) fnames = eff->feature_names();
+      for (size_t k = 0; k < fnames.size(); ++k) {
+        parametric_names_.emplace_back(fnames[k], begin + static_cast<int>(k));
+      }
+    }
+  }
+  map_ = parts.size() == 1 ? parts.front() : std::make_shared<SumFeatureMap>(parts);
+}
+
+void RobotModel::BuildKernel() {
+  const int N = num_joints_;
+  std::unique_ptr<Kernel> base;
+  if (spec_.base == BaseModel::kRbf) {
+    base = std::make_unique<RbfKernel>(3 * N, /*ard=*/true);
+  } else {
+    base = std::make_unique<RbfsKernel>(N, /*ard=*/true);
+  }
+  std::vector<std::string> extra_names;
+  auto extras = ExtrasMap(spec_, N, options_.friction_width, false, &extra_names);
+  if (!extras) {
+    kernel_ = std::move(base);
+    return;
+  }
+  Hyperparameters h = Hyperparameters::Defaults(*extras, N);
+  h.log_block_scale.setConstant(std::log(options_.broad_prior_std));
+  FeatureKernel extra_kernel(extras, h);
+  kernel_ = std::make_unique<SumKernel>(std::vector<const Kernel*>{base.get(), &extra_kernel});
+}
+
+Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) const {
+  RequireSize("RobotModel::DefaultHyperparameters Y", Y.cols(), num_joints_, "columns (joints)");
+  Hyperparameters h;
+  if (map_) {
+    h = Hyperparameters::Defaults(*map_, num_joints_);
+    // Broad priors on everything that is not the base's own structure.
+    const auto blocks = map_->blocks();
+    int base_end = 0;
+    for (const auto& p : parts_) {
+      if (p.name == "inertial" || p.name == "coriolis" || p.name == "gravity" ||
+          p.name == "motor" || p.name == "all") {
+        base_end = std::max(base_end, p.begin + p.size);
+      }
+    }
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      if (blocks[b].begin >= base_end) {
+        h.log_block_scale[static_cast<Eigen::Index>(b)] = std::log(options_.broad_prior_std);
+      }
+    }
+  } else {
+    h.shape.resize(0);
+    h.log_block_scale.resize(0);
+    h.log_output_scale = Vector::Zero(num_joints_);
+  }
+  for (int j = 0; j < num_joints_; ++j) {
+    const double rms = Y.rows() > 0 ? std::sqrt(Y.col(j).squaredNorm() / Y.rows()) : 1.0;
+    h.log_output_scale[j] = std::log(rms > 1e-12 ? rms : 1.0);
+  }
+  h.log_noise_std = std::log(0.1);
+  return h;
+}
+
+Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
+  return Fit(X, Y, DefaultHyperparameters(Y));
+}
+
+Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                       const Hyperparameters& hyper) {
+  RequireSize("RobotModel::Fit X", X.cols(), input_dim(), "columns");
+  RequireSize("RobotModel::Fit Y", Y.cols(), num_joints_, "columns (joints)");
+  std::unique_ptr<GaussianProcess> gp;
+  if (map_) {
+    gp = std::make_unique<GaussianProcess>(map_, hyper, num_joints_, options_.form);
+  } else {
+    RequireSize("RobotModel::Fit hyper.log_output_scale", hyper.log_output_scale.size(),
+                num_joints_);
+    gp = std::make_unique<GaussianProcess>(*kernel_, hyper.noise_variance(), num_joints_,
+                                           hyper.output_scales());
+  }
+  const Status status = gp->Fit(X, Y);
+  if (status != Status::kOk) return status;
+  gp_ = std::move(gp);
+  hyper_ = hyper;
+  return Status::kOk;
+}
+
+const GaussianProcess& RobotModel::gp() const {
+  if (!gp_) throw std::logic_error("RobotModel: not fitted");
+  return *gp_;
+}
+
+GaussianProcess& RobotModel::mutable_gp() {
+  if (!gp_) throw std::logic_error("RobotModel: not fitted");
+  return *gp_;
+}
+
+Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean) const {
+  return gp().Predict(x, mean);
+}
+
+Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
+                                       VectorRef latent_variance, VectorRef noisy_variance) const {
+  return gp().PredictWithVariance(x, mean, latent_variance, noisy_variance);
+}
+
+void RobotModel::PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std) const {
+  RequireSize("RobotModel::PredictRows X", X.cols(), input_dim(), "columns");
+  RequireFinite("RobotModel::PredictRows X", X);
+  const int N = num_joints_;
+  mean->resize(X.rows(), N);
+  if (latent_std) latent_std->resize(X.rows(), N);
+  Vector x(input_dim()), m(N), lv(N), nv(N);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    x = X.row(i).transpose();
+    const Status s = latent_std ? PredictWithVariance(x, m, lv, nv) : Predict(x, m);
+    if (s != Status::kOk) {
+      throw std::runtime_error(std::string("RobotModel::PredictRows: row ") + std::to_string(i) +
+                               ": " + ToString(s));
+    }
+    mean->row(i) = m.transpose();
+    if (latent_std) latent_std->row(i) = lv.cwiseSqrt().transpose();
+  }
+}
+
+std::vector<std::string> RobotModel::ComponentNames() const {
+  std::vector<std::string> names;
+  for (const auto& p : parts_) names.push_back(p.name);
+  return names;
+}
+
+Status RobotModel::PredictComponents(const ConstVectorRef& x,
+                                     std::vector<Component>* components) const {
+  if (!gp_ || !map_ || gp_->weight_space() == nullptr || x.size() != input_dim() ||
+      !x.allFinite()) {
+    return Status::kInvalidInput;
+  }
+  const WeightSpaceGP& ws = *gp_->weight_space();
+  Vector phi(map_->dim());
+  map_->Evaluate(x, phi);
+  const Matrix& W = ws.weights();
+  const Matrix& S = ws.covariance_factor();
+  const Vector s2 = ws.output_scales().cwiseAbs2() * ws.noise_variance();
+  components->clear();
+  for (const auto& p : parts_) {
+    Component c;
+    c.name = p.name;
+    const auto phi_p = phi.segment(p.begin, p.size);
+    c.mean = W.middleRows(p.begin, p.size).transpose() * phi_p;
+    // phi_p^T (A^{-1})_pp phi_p = ||S^T phi_masked||^2, only rows of the part contribute.
+    const double quad = (S.middleRows(p.begin, p.size).transpose() * phi_p).squaredNorm();
+    c.latent_variance = quad * s2;
+    components->push_back(std::move(c));
+  }
+  return Status::kOk;
+}
+
+std::pair<double, double> RobotModel::Coefficient(const std::string& feature, int joint) const {
+  if (joint < 1 || joint > num_joints_) {
+    throw std::invalid_argument("Coefficient: joint " + std::to_string(joint) +
+                                " out of range 1.." + std::to_string(num_joints_));
+  }
+  if (!gp_ || gp_->weight_space() == nullptr) {
+    throw std::invalid_argument("Coefficient: needs a fitted weight-space model");
+  }
+  for (const auto& [name, index] : parametric_names_) {
+    if (name == feature) {
+      const WeightSpaceGP& ws = *gp_->weight_space();
+      const double value = ws.weights()(index, joint - 1);
+      const double var = ws.covariance_factor().row(index).squaredNorm() * ws.noise_variance() *
+                         ws.output_scales()[joint - 1] * ws.output_scales()[joint - 1];
+      return {value, std::sqrt(var)};
+    }
+  }
+  throw std::invalid_argument("Coefficient: the model has no feature '" + feature + "'");
+}
+
+std::vector<std::string> RobotModel::ParametricFeatureNames() const {
+  std::vector<std::string> names;
+  for (const auto& entry : parametric_names_) names.push_back(entry.first);
+  return names;
+}
+
+}  // namespace structgp
