@@ -1,0 +1,58 @@
+#ifndef STRUCTGP_REPORT_REPORT_H_
+#define STRUCTGP_REPORT_REPORT_H_
+
+/// @file
+/// The diagnosis report: one self-contained HTML file (no network, no external scripts) with,
+/// per joint, measured vs predicted torque over time with a +-2 sigma band, the residual
+/// against qd and against q (where a friction step or a cogging ripple shows), the ranked
+/// suggestions with their evidence, and, for a comparison, the errors of each model per joint.
+/// Plots are interactive (zoom by dragging, double-click to reset, hover for values).
+
+#include <string>
+#include <vector>
+
+#include "structgp/diagnose/diagnosis.h"
+
+namespace structgp {
+namespace report {
+
+/// One model's predictions for one joint, aligned with the measurements.
+struct PredictionSeries {
+  std::string label;           ///< model name, e.g. "pol" or "pol + coulomb@2"
+  std::vector<double> mean;    ///< predicted torque per sample
+  std::vector<double> std;     ///< predictive standard deviation per sample (may be empty)
+};
+
+struct JointData {
+  int joint = 0;                    ///< 1-based
+  std::vector<double> t;            ///< time (s) or sample index when the data have no time
+  std::vector<double> q, qd;        ///< the joint's position and velocity
+  std::vector<double> measured;     ///< measured torque
+  std::vector<PredictionSeries> predictions;  ///< one per model (first = the model diagnosed)
+};
+
+/// Errors of one model, per joint.
+struct ModelErrors {
+  std::string label;
+  std::vector<double> rms;   ///< per joint
+  std::vector<double> nmse;  ///< per joint
+};
+
+struct ReportData {
+  std::string title = "structgp report";
+  std::string data_source;          ///< the data file
+  std::vector<JointData> joints;
+  bool has_diagnosis = false;
+  Diagnosis diagnosis;              ///< when has_diagnosis
+  std::vector<ModelErrors> errors;  ///< one per model (compare: before, after)
+  std::vector<std::string> notes;   ///< free text lines shown at the top
+};
+
+/// The complete HTML document. At most max_points_per_plot points are drawn per series
+/// (evenly thinned, extremes kept) so that large logs stay light.
+std::string RenderHtml(const ReportData& data, int max_points_per_plot = 4000);
+
+}  // namespace report
+}  // namespace structgp
+
+#endif  // STRUCTGP_REPORT_REPORT_H_
