@@ -1,6 +1,7 @@
 #include "model/factor_kernels.h"
 
 #include <cmath>
+#include <cstring>
 
 // GCC/Clang function multi-versioning: an AVX2+FMA clone and the baseline, dispatched once at
 // load time. Disabled under sanitizers and on non-x86 targets.
@@ -16,8 +17,22 @@ namespace structgp {
 namespace internal {
 namespace {
 
-// Four columns j0..j0+3 at once over rows [0, j0): eight independent dot products keep the
-// FMA pipes busy, and x1, x2 are loaded once for four columns.
+// Four doubles, unaligned. GCC/Clang vector extensions: one AVX register in the AVX2 clone,
+// two SSE registers in the baseline one. Plain loops with reductions do not vectorise well
+// here (the reduction lanes end up in memory), so the four-lane arithmetic is written out.
+typedef double V4 __attribute__((vector_size(32), aligned(8)));
+
+STRUCTGP_INLINE V4 Load(const double* p) {
+  V4 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+STRUCTGP_INLINE void Store(double* p, V4 v) { std::memcpy(p, &v, sizeof(v)); }
+STRUCTGP_INLINE V4 Splat(double x) { return V4{x, x, x, x}; }
+STRUCTGP_INLINE double Sum(V4 v) { return (v[0] + v[1]) + (v[2] + v[3]); }
+
+// Four columns j0..j0+3 at once over rows [0, j0) (j0 is a multiple of 4): eight independent
+// accumulators keep the FMA pipes busy, and x1, x2 are loaded once for four columns.
 template <bool kTwo>
 STRUCTGP_INLINE void Project4(const double* S, int ld, int j0, const double* x1,
                               const double* x2, double* y1, double* y2) {
@@ -25,29 +40,32 @@ STRUCTGP_INLINE void Project4(const double* S, int ld, int j0, const double* x1,
   const double* c1 = c0 + ld;
   const double* c2 = c1 + ld;
   const double* c3 = c2 + ld;
-  double p0 = 0, p1 = 0, p2 = 0, p3 = 0, q0 = 0, q1 = 0, q2 = 0, q3 = 0;
-#pragma omp simd reduction(+ : p0, p1, p2, p3, q0, q1, q2, q3)
-  for (int i = 0; i < j0; ++i) {
-    p0 += c0[i] * x1[i];
-    p1 += c1[i] * x1[i];
-    p2 += c2[i] * x1[i];
-    p3 += c3[i] * x1[i];
+  V4 p0 = Splat(0), p1 = Splat(0), p2 = Splat(0), p3 = Splat(0);
+  V4 q0 = Splat(0), q1 = Splat(0), q2 = Splat(0), q3 = Splat(0);
+  for (int i = 0; i < j0; i += 4) {
+    const V4 a = Load(x1 + i);
+    const V4 u0 = Load(c0 + i), u1 = Load(c1 + i), u2 = Load(c2 + i), u3 = Load(c3 + i);
+    p0 += u0 * a;
+    p1 += u1 * a;
+    p2 += u2 * a;
+    p3 += u3 * a;
     if (kTwo) {
-      q0 += c0[i] * x2[i];
-      q1 += c1[i] * x2[i];
-      q2 += c2[i] * x2[i];
-      q3 += c3[i] * x2[i];
+      const V4 b = Load(x2 + i);
+      q0 += u0 * b;
+      q1 += u1 * b;
+      q2 += u2 * b;
+      q3 += u3 * b;
     }
   }
-  y1[j0] = p0;
-  y1[j0 + 1] = p1;
-  y1[j0 + 2] = p2;
-  y1[j0 + 3] = p3;
+  y1[j0] = Sum(p0);
+  y1[j0 + 1] = Sum(p1);
+  y1[j0 + 2] = Sum(p2);
+  y1[j0 + 3] = Sum(p3);
   if (kTwo) {
-    y2[j0] = q0;
-    y2[j0 + 1] = q1;
-    y2[j0 + 2] = q2;
-    y2[j0 + 3] = q3;
+    y2[j0] = Sum(q0);
+    y2[j0 + 1] = Sum(q1);
+    y2[j0 + 2] = Sum(q2);
+    y2[j0 + 3] = Sum(q3);
   }
 }
 
@@ -120,48 +138,54 @@ STRUCTGP_INLINE void CarlsonRankOneImpl(double* S, int ld, int D, const double* 
     const double a0 = a[j0], a1 = a[j0 + 1], a2 = a[j0 + 2], a3 = a[j0 + 3];
     const double b0 = b[j0], b1 = b[j0 + 1], b2 = b[j0 + 2], b3 = b[j0 + 3];
     const double k0 = c[j0], k1 = c[j0 + 1], k2 = c[j0 + 2], k3 = c[j0 + 3];
-    double p0 = 0, p1 = 0, p2 = 0, p3 = 0, q0 = 0, q1 = 0, q2 = 0, q3 = 0;
     // Rows above the block: the four columns in turn, the running gain kept in a register.
-#pragma omp simd reduction(+ : p0, p1, p2, p3, q0, q1, q2, q3)
-    for (int i = 0; i < j0; ++i) {
-      double g = gain[i];
-      double u = c0[i];
-      double nu = a0 * u - b0 * g;
-      g += k0 * u;
-      c0[i] = nu;
+    const V4 va0 = Splat(a0), va1 = Splat(a1), va2 = Splat(a2), va3 = Splat(a3);
+    const V4 vb0 = Splat(b0), vb1 = Splat(b1), vb2 = Splat(b2), vb3 = Splat(b3);
+    const V4 vk0 = Splat(k0), vk1 = Splat(k1), vk2 = Splat(k2), vk3 = Splat(k3);
+    V4 p0 = Splat(0), p1 = Splat(0), p2 = Splat(0), p3 = Splat(0);
+    V4 q0 = Splat(0), q1 = Splat(0), q2 = Splat(0), q3 = Splat(0);
+    for (int i = 0; i < j0; i += 4) {
+      V4 g = Load(gain + i);
+      V4 u = Load(c0 + i);
+      V4 nu = va0 * u - vb0 * g;
+      g += vk0 * u;
+      Store(c0 + i, nu);
+      V4 xa, xb;
       if (kProject) {
-        p0 += nu * x1[i];
-        q0 += nu * x2[i];
+        xa = Load(x1 + i);
+        xb = Load(x2 + i);
+        p0 += nu * xa;
+        q0 += nu * xb;
       }
-      u = c1[i];
-      nu = a1 * u - b1 * g;
-      g += k1 * u;
-      c1[i] = nu;
+      u = Load(c1 + i);
+      nu = va1 * u - vb1 * g;
+      g += vk1 * u;
+      Store(c1 + i, nu);
       if (kProject) {
-        p1 += nu * x1[i];
-        q1 += nu * x2[i];
+        p1 += nu * xa;
+        q1 += nu * xb;
       }
-      u = c2[i];
-      nu = a2 * u - b2 * g;
-      g += k2 * u;
-      c2[i] = nu;
+      u = Load(c2 + i);
+      nu = va2 * u - vb2 * g;
+      g += vk2 * u;
+      Store(c2 + i, nu);
       if (kProject) {
-        p2 += nu * x1[i];
-        q2 += nu * x2[i];
+        p2 += nu * xa;
+        q2 += nu * xb;
       }
-      u = c3[i];
-      nu = a3 * u - b3 * g;
-      g += k3 * u;
-      c3[i] = nu;
+      u = Load(c3 + i);
+      nu = va3 * u - vb3 * g;
+      g += vk3 * u;
+      Store(c3 + i, nu);
       if (kProject) {
-        p3 += nu * x1[i];
-        q3 += nu * x2[i];
+        p3 += nu * xa;
+        q3 += nu * xb;
       }
-      gain[i] = g;
+      Store(gain + i, g);
     }
     if (kProject) {
-      y1[j0] = p0, y1[j0 + 1] = p1, y1[j0 + 2] = p2, y1[j0 + 3] = p3;
-      y2[j0] = q0, y2[j0 + 1] = q1, y2[j0 + 2] = q2, y2[j0 + 3] = q3;
+      y1[j0] = Sum(p0), y1[j0 + 1] = Sum(p1), y1[j0 + 2] = Sum(p2), y1[j0 + 3] = Sum(p3);
+      y2[j0] = Sum(q0), y2[j0 + 1] = Sum(q1), y2[j0 + 2] = Sum(q2), y2[j0 + 3] = Sum(q3);
     }
     // The 4 x 4 corner, column by column (each column starts its row's gain).
     for (int t = 0; t < 4; ++t) {
