@@ -12,6 +12,9 @@
 #define STRUCTGP_CLONES
 #endif
 #define STRUCTGP_INLINE inline __attribute__((always_inline))
+#ifndef STRUCTGP_CARLSON_BLOCK
+#define STRUCTGP_CARLSON_BLOCK 2
+#endif
 
 namespace structgp {
 namespace internal {
@@ -124,73 +127,65 @@ STRUCTGP_INLINE void CarlsonColumn(double* S, int ld, int row0, int j, double a,
   }
 }
 
+// Columns j0..j0+C-1 over rows [0, rows) (rows a multiple of 4), the running gain kept in a
+// register across the C columns; with kProject, the new columns' dot products with x1 and x2
+// over those rows go to y1, y2.
+template <int C, bool kProject>
+STRUCTGP_INLINE void CarlsonBlock(double* S, int ld, int j0, int rows, const double* a,
+                                  const double* b, const double* c, double* gain,
+                                  const double* x1, const double* x2, double* y1, double* y2) {
+  double* col[C];
+  V4 va[C], vb[C], vk[C], p[C], q[C];
+  for (int t = 0; t < C; ++t) {
+    col[t] = S + static_cast<long>(j0 + t) * ld;
+    va[t] = Splat(a[j0 + t]);
+    vb[t] = Splat(b[j0 + t]);
+    vk[t] = Splat(c[j0 + t]);
+    p[t] = q[t] = Splat(0);
+  }
+  for (int i = 0; i < rows; i += 4) {
+    V4 g = Load(gain + i);
+    V4 xa = Splat(0), xb = Splat(0);
+    if (kProject) {
+      xa = Load(x1 + i);
+      xb = Load(x2 + i);
+    }
+    for (int t = 0; t < C; ++t) {
+      const V4 u = Load(col[t] + i);
+      const V4 nu = va[t] * u - vb[t] * g;
+      g += vk[t] * u;
+      Store(col[t] + i, nu);
+      if (kProject) {
+        p[t] += nu * xa;
+        q[t] += nu * xb;
+      }
+    }
+    Store(gain + i, g);
+  }
+  if (kProject) {
+    for (int t = 0; t < C; ++t) {
+      y1[j0 + t] = Sum(p[t]);
+      y2[j0 + t] = Sum(q[t]);
+    }
+  }
+}
+
 template <bool kProject>
 STRUCTGP_INLINE void CarlsonRankOneImpl(double* S, int ld, int D, const double* a,
                                         const double* b, const double* c, double* gain,
                                         const double* x1, const double* x2, double* y1,
                                         double* y2) {
+  // Blocks of kBlock columns; the rows above a block that are a multiple of 4 go through the
+  // vector loop, the few rows left and the block's own triangle column by column.
+  constexpr int kBlock = STRUCTGP_CARLSON_BLOCK;
   int j0 = 0;
-  for (; j0 + 4 <= D; j0 += 4) {
-    double* c0 = S + static_cast<long>(j0) * ld;
-    double* c1 = c0 + ld;
-    double* c2 = c1 + ld;
-    double* c3 = c2 + ld;
-    const double a0 = a[j0], a1 = a[j0 + 1], a2 = a[j0 + 2], a3 = a[j0 + 3];
-    const double b0 = b[j0], b1 = b[j0 + 1], b2 = b[j0 + 2], b3 = b[j0 + 3];
-    const double k0 = c[j0], k1 = c[j0 + 1], k2 = c[j0 + 2], k3 = c[j0 + 3];
-    // Rows above the block: the four columns in turn, the running gain kept in a register.
-    const V4 va0 = Splat(a0), va1 = Splat(a1), va2 = Splat(a2), va3 = Splat(a3);
-    const V4 vb0 = Splat(b0), vb1 = Splat(b1), vb2 = Splat(b2), vb3 = Splat(b3);
-    const V4 vk0 = Splat(k0), vk1 = Splat(k1), vk2 = Splat(k2), vk3 = Splat(k3);
-    V4 p0 = Splat(0), p1 = Splat(0), p2 = Splat(0), p3 = Splat(0);
-    V4 q0 = Splat(0), q1 = Splat(0), q2 = Splat(0), q3 = Splat(0);
-    for (int i = 0; i < j0; i += 4) {
-      V4 g = Load(gain + i);
-      V4 u = Load(c0 + i);
-      V4 nu = va0 * u - vb0 * g;
-      g += vk0 * u;
-      Store(c0 + i, nu);
-      V4 xa, xb;
-      if (kProject) {
-        xa = Load(x1 + i);
-        xb = Load(x2 + i);
-        p0 += nu * xa;
-        q0 += nu * xb;
-      }
-      u = Load(c1 + i);
-      nu = va1 * u - vb1 * g;
-      g += vk1 * u;
-      Store(c1 + i, nu);
-      if (kProject) {
-        p1 += nu * xa;
-        q1 += nu * xb;
-      }
-      u = Load(c2 + i);
-      nu = va2 * u - vb2 * g;
-      g += vk2 * u;
-      Store(c2 + i, nu);
-      if (kProject) {
-        p2 += nu * xa;
-        q2 += nu * xb;
-      }
-      u = Load(c3 + i);
-      nu = va3 * u - vb3 * g;
-      g += vk3 * u;
-      Store(c3 + i, nu);
-      if (kProject) {
-        p3 += nu * xa;
-        q3 += nu * xb;
-      }
-      Store(gain + i, g);
-    }
-    if (kProject) {
-      y1[j0] = Sum(p0), y1[j0 + 1] = Sum(p1), y1[j0 + 2] = Sum(p2), y1[j0 + 3] = Sum(p3);
-      y2[j0] = Sum(q0), y2[j0 + 1] = Sum(q1), y2[j0 + 2] = Sum(q2), y2[j0 + 3] = Sum(q3);
-    }
-    // The 4 x 4 corner, column by column (each column starts its row's gain).
-    for (int t = 0; t < 4; ++t) {
+  for (; j0 + kBlock <= D; j0 += kBlock) {
+    const int rows = j0 & ~3;
+    CarlsonBlock<kBlock, kProject>(S, ld, j0, rows, a, b, c, gain, x1, x2, y1, y2);
+    for (int t = 0; t < kBlock; ++t) {
       const int j = j0 + t;
-      CarlsonColumn<kProject>(S, ld, j0, j, a[j], b[j], c[j], gain, x1, x2, y1, y2);
+      if (kProject && rows == 0) y1[j] = y2[j] = 0.0;
+      CarlsonColumn<kProject>(S, ld, rows, j, a[j], b[j], c[j], gain, x1, x2, y1, y2);
     }
   }
   for (int j = j0; j < D; ++j) {
