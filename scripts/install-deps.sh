@@ -12,6 +12,7 @@ packages=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
   nlohmann-json3-dev libcli11-dev
+  chromium  # headless browser test of the HTML report (tests/test_report.cc)
   zlib1g-dev
 )
 

@@ -1,0 +1,590 @@
+#include "structgp/report/report.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "report/report_assets.h"
+
+namespace structgp {
+namespace report {
+namespace {
+
+// Significant digits of the numbers embedded for the plots: finer than a screen resolves and
+// than the sensors' own precision, and short enough to keep reports of long logs light.
+constexpr int kPlotDigits = 8;
+// Significant digits of the numbers in the tables.
+constexpr int kTableDigits = 4;
+// Smallest max_points_per_plot: a single bucket keeps its minimum and maximum.
+constexpr int kMinPointsPerPlot = 2;
+// A relative change smaller than this (in percent) is shown with one decimal.
+constexpr double kOneDecimalBelowPercent = 9.95;
+// Shown in place of a missing or non-finite number.
+constexpr char kMissing[] = "\xE2\x80\x93";  // en dash
+
+// ---- text -----------------------------------------------------------------------------------
+
+// Escapes text for HTML element content and for quoted attribute values.
+std::string Escape(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+// Shortest text of `value` with at most `digits` significant digits (locale independent).
+std::string FormatNumber(double value, int digits) {
+  if (!std::isfinite(value)) return kMissing;
+  char buffer[64];
+  const auto result =
+      std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general, digits);
+  return std::string(buffer, result.ptr);
+}
+
+std::string FormatFixed(double value, int decimals) {
+  if (!std::isfinite(value)) return kMissing;
+  char buffer[64];
+  const auto result =
+      std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::fixed, decimals);
+  return std::string(buffer, result.ptr);
+}
+
+// The relative change from `before` to `after` of an error ("-87%"), as a badge coloured by
+// whether the error fell. Empty when the change is undefined (missing values, before <= 0).
+std::string ChangeBadge(double before, double after) {
+  if (!std::isfinite(before) || !std::isfinite(after) || !(before > 0)) return "";
+  const double percent = 100.0 * (after - before) / before;
+  const int decimals = std::abs(percent) < kOneDecimalBelowPercent ? 1 : 0;
+  std::string text = FormatFixed(std::abs(percent), decimals);
+  const bool zero = text.find_first_not_of("0.") == std::string::npos;
+  const char* kind = zero ? "same" : percent < 0 ? "better" : "worse";
+  if (zero) {
+    text = "0";
+  } else {
+    text.insert(0, percent < 0 ? "-" : "+");
+  }
+  return std::string("<span class=\"chg ") + kind + "\">" + text + "%</span>";
+}
+
+// ---- JSON for the plots -----------------------------------------------------------------------
+
+// A JSON string literal that is also safe inside a <script> element: '<', '>' and '&' are
+// written as \u escapes, so that no "</script>" can end the element early.
+void AppendJsonString(std::string_view text, std::string* out) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  *out += '"';
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      *out += '\\';
+      *out += c;
+    } else if (u < 0x20 || c == '<' || c == '>' || c == '&') {
+      *out += "\\u00";
+      *out += kHex[u >> 4];
+      *out += kHex[u & 0xF];
+    } else {
+      *out += c;
+    }
+  }
+  *out += '"';
+}
+
+// A number, or null when it is not finite (JSON has no NaN or infinity).
+void AppendJsonNumber(double value, std::string* out) {
+  if (!std::isfinite(value)) {
+    *out += "null";
+    return;
+  }
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value,
+                                    std::chars_format::general, kPlotDigits);
+  out->append(buffer, result.ptr);
+}
+
+void AppendJsonArray(const std::vector<double>& values, const std::vector<std::size_t>& keep,
+                     std::string* out) {
+  *out += '[';
+  for (std::size_t i = 0; i < keep.size(); ++i) {
+    if (i > 0) *out += ',';
+    AppendJsonNumber(values[keep[i]], out);
+  }
+  *out += ']';
+}
+
+// Indices of the samples drawn for one series: all of them when there are at most
+// max_points; otherwise the samples are cut into max_points / 2 contiguous buckets and each
+// bucket keeps the sample with its smallest and the one with its largest y (in sample order),
+// so that spikes stay visible however much the series is thinned. Samples whose x or y is not
+// finite are never chosen; a bucket without a finite sample keeps its first one, drawn as a gap.
+std::vector<std::size_t> ThinnedIndices(const std::vector<double>& x, const std::vector<double>& y,
+                                        int max_points) {
+  const std::size_t n = y.size();
+  std::vector<std::size_t> keep;
+  if (n <= static_cast<std::size_t>(max_points)) {
+    keep.resize(n);
+    std::iota(keep.begin(), keep.end(), std::size_t{0});
+    return keep;
+  }
+  const std::size_t buckets = static_cast<std::size_t>(max_points) / 2;
+  keep.reserve(2 * buckets);
+  for (std::size_t b = 0; b < buckets; ++b) {
+    const std::size_t begin = n * b / buckets;
+    const std::size_t end = n * (b + 1) / buckets;
+    std::size_t low = end, high = end;  // end: none found yet
+    for (std::size_t i = begin; i < end; ++i) {
+      if (!std::isfinite(x[i]) || !std::isfinite(y[i])) continue;
+      if (low == end || y[i] < y[low]) low = i;
+      if (high == end || y[i] > y[high]) high = i;
+    }
+    if (low == end) {
+      keep.push_back(begin);
+      continue;
+    }
+    keep.push_back(std::min(low, high));
+    if (low != high) keep.push_back(std::max(low, high));
+  }
+  return keep;
+}
+
+// One series of a plot, all samples (thinned when written).
+struct Series {
+  std::string label;
+  const char* role = "";  // "measured", "prediction" or "residual"
+  std::vector<double> x, y;
+  std::vector<double> lo, hi;  // the +-2 sigma band, empty when there is none
+};
+
+struct Plot {
+  const char* type = "line";  // "line" or "scatter"
+  std::string title, x_label, y_label;
+  bool zero_line = false;
+  bool wide = false;  // spans the page's width
+  std::vector<Series> series;
+};
+
+void AppendPlotJson(const Plot& plot, int max_points, std::string* out) {
+  *out += "{\"type\":";
+  AppendJsonString(plot.type, out);
+  *out += ",\"title\":";
+  AppendJsonString(plot.title, out);
+  *out += ",\"xLabel\":";
+  AppendJsonString(plot.x_label, out);
+  *out += ",\"yLabel\":";
+  AppendJsonString(plot.y_label, out);
+  *out += ",\"zeroLine\":";
+  *out += plot.zero_line ? "true" : "false";
+  *out += ",\"series\":[";
+  for (std::size_t s = 0; s < plot.series.size(); ++s) {
+    const Series& series = plot.series[s];
+    const std::vector<std::size_t> keep = ThinnedIndices(series.x, series.y, max_points);
+    if (s > 0) *out += ',';
+    *out += "{\"label\":";
+    AppendJsonString(series.label, out);
+    *out += ",\"role\":";
+    AppendJsonString(series.role, out);
+    *out += ",\"samples\":" + std::to_string(series.y.size());
+    *out += ",\"x\":";
+    AppendJsonArray(series.x, keep, out);
+    *out += ",\"y\":";
+    AppendJsonArray(series.y, keep, out);
+    if (!series.lo.empty()) {
+      *out += ",\"lo\":";
+      AppendJsonArray(series.lo, keep, out);
+      *out += ",\"hi\":";
+      AppendJsonArray(series.hi, keep, out);
+    }
+    *out += '}';
+  }
+  *out += "]}";
+}
+
+// ---- input checks ---------------------------------------------------------------------------
+
+void CheckLength(const JointData& joint, const std::string& what, std::size_t got,
+                 bool may_be_empty) {
+  const std::size_t expected = joint.measured.size();
+  if (got == expected || (may_be_empty && got == 0)) return;
+  throw std::invalid_argument("RenderHtml: joint " + std::to_string(joint.joint) + ": " + what +
+                              " has " + std::to_string(got) + " values, expected " +
+                              std::to_string(expected) + " (one per measured sample)" +
+                              (may_be_empty ? " or none" : ""));
+}
+
+void CheckInput(const ReportData& data, int max_points_per_plot) {
+  if (max_points_per_plot < kMinPointsPerPlot) {
+    throw std::invalid_argument("RenderHtml: max_points_per_plot: expected at least " +
+                                std::to_string(kMinPointsPerPlot) + ", got " +
+                                std::to_string(max_points_per_plot));
+  }
+  for (const JointData& joint : data.joints) {
+    CheckLength(joint, "t", joint.t.size(), true);
+    CheckLength(joint, "q", joint.q.size(), true);
+    CheckLength(joint, "qd", joint.qd.size(), true);
+    for (const PredictionSeries& p : joint.predictions) {
+      CheckLength(joint, "the mean of '" + p.label + "'", p.mean.size(), false);
+      CheckLength(joint, "the std of '" + p.label + "'", p.std.size(), true);
+    }
+  }
+  for (const ModelErrors& e : data.errors) {
+    if (e.rms.size() != e.nmse.size()) {
+      throw std::invalid_argument("RenderHtml: errors of '" + e.label + "': rms has " +
+                                  std::to_string(e.rms.size()) + " joints, nmse has " +
+                                  std::to_string(e.nmse.size()) + " (expected the same)");
+    }
+  }
+}
+
+// ---- plots of one joint -----------------------------------------------------------------------
+
+// Torque over time (measured and every prediction, with bands); then, when there is a
+// prediction, the residual of the first against qd and against q (where friction and cogging
+// show).
+std::vector<Plot> JointPlots(const JointData& joint) {
+  const std::size_t n = joint.measured.size();
+  const std::string j = std::to_string(joint.joint);
+  std::vector<Plot> plots;
+  if (n == 0) return plots;
+
+  std::vector<double> t = joint.t;
+  if (t.empty()) {
+    t.resize(n);
+    std::iota(t.begin(), t.end(), 0.0);
+  }
+  Plot time;
+  time.title = "Joint " + j + ": measured and predicted torque";
+  time.x_label = joint.t.empty() ? "sample" : "t";
+  time.y_label = "torque";
+  time.wide = true;
+  time.series.push_back({"measured", "measured", t, joint.measured, {}, {}});
+  for (const PredictionSeries& p : joint.predictions) {
+    Series s{p.label, "prediction", t, p.mean, {}, {}};
+    if (!p.std.empty()) {
+      s.lo.resize(n);
+      s.hi.resize(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        s.lo[i] = p.mean[i] - 2.0 * p.std[i];
+        s.hi[i] = p.mean[i] + 2.0 * p.std[i];
+      }
+    }
+    time.series.push_back(std::move(s));
+  }
+  plots.push_back(std::move(time));
+  if (joint.predictions.empty()) return plots;
+
+  const PredictionSeries& first = joint.predictions.front();
+  std::vector<double> residual(n);
+  for (std::size_t i = 0; i < n; ++i) residual[i] = joint.measured[i] - first.mean[i];
+  const std::string label = "measured - " + first.label;
+  const auto residual_plot = [&](const std::vector<double>& x, const std::string& variable) {
+    Plot plot;
+    plot.type = "scatter";
+    plot.title = "Joint " + j + ": residual vs " + variable;
+    plot.x_label = variable;
+    plot.y_label = "residual torque";
+    plot.zero_line = true;
+    plot.series.push_back({label, "residual", x, residual, {}, {}});
+    return plot;
+  };
+  if (!joint.qd.empty()) plots.push_back(residual_plot(joint.qd, "qd" + j));
+  if (!joint.q.empty()) plots.push_back(residual_plot(joint.q, "q" + j));
+  return plots;
+}
+
+// ---- HTML sections ----------------------------------------------------------------------------
+
+void AppendHeader(const ReportData& data, std::string* html) {
+  *html += "<header>\n<h1>" + Escape(data.title) + "</h1>\n<dl class=\"meta\">\n";
+  if (!data.data_source.empty()) {
+    *html += "<dt>Data</dt><dd><code>" + Escape(data.data_source) + "</code></dd>\n";
+  }
+  if (data.has_diagnosis) {
+    const Diagnosis& d = data.diagnosis;
+    if (!d.model.empty()) *html += "<dt>Model</dt><dd><code>" + Escape(d.model) + "</code></dd>\n";
+    *html += "<dt>Samples</dt><dd>" + std::to_string(d.num_samples) + "</dd>\n";
+    *html += "<dt>Noise level</dt><dd>" + FormatNumber(d.noise_std, kTableDigits) +
+             " <span class=\"muted\">(relative &sigma;<sub>n</sub> by evidence)</span></dd>\n";
+  }
+  *html += "</dl>\n";
+  if (!data.notes.empty()) {
+    *html += "<ul class=\"notes\">\n";
+    for (const std::string& note : data.notes) *html += "<li>" + Escape(note) + "</li>\n";
+    *html += "</ul>\n";
+  }
+  if (!data.joints.empty()) {
+    *html += "<nav>";
+    for (const JointData& joint : data.joints) {
+      const std::string j = std::to_string(joint.joint);
+      *html += "<a href=\"#joint-" + j + "\">Joint " + j + "</a>";
+    }
+    *html += "</nav>\n";
+  }
+  *html += "</header>\n";
+}
+
+// Rows: joints (and all joints together); columns: RMS and nMSE of each model, with the change
+// from the first model for the others.
+void AppendErrors(const ReportData& data, std::string* html) {
+  if (data.errors.empty()) return;
+  std::size_t num_joints = 0;
+  for (const ModelErrors& e : data.errors) num_joints = std::max(num_joints, e.rms.size());
+  const ModelErrors& base = data.errors.front();
+  const auto value = [](const std::vector<double>& v, std::size_t i) {
+    return i < v.size() ? v[i] : std::nan("");
+  };
+  // Quadratic mean of the RMS and mean of the nMSE over the joints.
+  const auto total = [num_joints](const std::vector<double>& v, bool quadratic) {
+    if (v.size() != num_joints || v.empty()) return std::nan("");
+    double sum = 0;
+    for (const double x : v) sum += quadratic ? x * x : x;
+    return quadratic ? std::sqrt(sum / v.size()) : sum / v.size();
+  };
+  const auto cells = [&](std::size_t m, double rms, double nmse, double base_rms,
+                         double base_nmse) {
+    std::string s = "<td>" + FormatNumber(rms, kTableDigits);
+    if (m > 0) s += ChangeBadge(base_rms, rms);
+    s += "</td><td>" + FormatNumber(nmse, kTableDigits);
+    if (m > 0) s += ChangeBadge(base_nmse, nmse);
+    return s + "</td>";
+  };
+
+  *html +=
+      "<section id=\"errors\">\n<h2>Errors per joint</h2>\n<table>\n<thead><tr>"
+      "<th class=\"text\" rowspan=\"2\">Joint</th>";
+  for (const ModelErrors& e : data.errors) {
+    *html += "<th class=\"text\" colspan=\"2\">" + Escape(e.label) + "</th>";
+  }
+  *html += "</tr>\n<tr>";
+  for (std::size_t m = 0; m < data.errors.size(); ++m) *html += "<th>RMS</th><th>nMSE</th>";
+  *html += "</tr></thead>\n<tbody>\n";
+  for (std::size_t i = 0; i < num_joints; ++i) {
+    *html += "<tr><td class=\"text\">" + std::to_string(i + 1) + "</td>";
+    for (std::size_t m = 0; m < data.errors.size(); ++m) {
+      const ModelErrors& e = data.errors[m];
+      *html += cells(m, value(e.rms, i), value(e.nmse, i), value(base.rms, i), value(base.nmse, i));
+    }
+    *html += "</tr>\n";
+  }
+  if (num_joints > 1) {
+    *html +=
+        "<tr class=\"total\"><td class=\"text\" title=\"RMS: quadratic mean over the "
+        "joints; nMSE: mean\">all</td>";
+    for (std::size_t m = 0; m < data.errors.size(); ++m) {
+      const ModelErrors& e = data.errors[m];
+      *html += cells(m, total(e.rms, true), total(e.nmse, false), total(base.rms, true),
+                     total(base.nmse, false));
+    }
+    *html += "</tr>\n";
+  }
+  *html += "</tbody>\n</table>\n";
+  if (data.errors.size() > 1) {
+    *html += "<p class=\"hint\">Changes are relative to <b>" + Escape(base.label) +
+             "</b>; a fall of the error is shown in green.</p>\n";
+  }
+  *html += "</section>\n";
+}
+
+std::string Parameters(const std::map<std::string, double>& params) {
+  if (params.empty()) return "<span class=\"muted\">none</span>";
+  std::string s;
+  for (const auto& [name, value] : params) {
+    if (!s.empty()) s += ", ";
+    s += Escape(name) + " = " + FormatNumber(value, kTableDigits);
+  }
+  return s;
+}
+
+void AppendSuggestions(const Diagnosis& d, std::string* html) {
+  *html += "<section id=\"suggestions\">\n<h2>Suggested effects</h2>\n";
+  if (d.suggestions.empty()) {
+    *html +=
+        "<p class=\"verdict\"><b>No missing effect was found.</b> No candidate effect "
+        "raised the evidence and lowered the held-out error of a joint enough to be "
+        "suggested: the model explains these data as far as the candidates can tell.</p>\n"
+        "</section>\n";
+    return;
+  }
+  std::string all_specs;
+  for (const Suggestion& s : d.suggestions) all_specs += (all_specs.empty() ? "" : ",") + s.spec;
+  *html += "<p class=\"verdict found\"><b>" + std::to_string(d.suggestions.size()) +
+           (d.suggestions.size() == 1 ? " missing effect" : " missing effects") +
+           " found</b>, best first. To add them all: <code>--effects " + Escape(all_specs) +
+           "</code></p>\n";
+  *html +=
+      "<table>\n<thead><tr><th>#</th><th class=\"text\">Effect</th><th>Joint</th>"
+      "<th title=\"Gain in log marginal likelihood of the joint's torque\">Evidence gain "
+      "(nats)</th><th title=\"Blocked cross-validation\">Held-out RMS before &rarr; "
+      "after</th><th class=\"text\">Parameters</th><th class=\"text\">--effects</th>"
+      "</tr></thead>\n<tbody>\n";
+  for (std::size_t i = 0; i < d.suggestions.size(); ++i) {
+    const Suggestion& s = d.suggestions[i];
+    *html += "<tr><td>" + std::to_string(i + 1) + "</td><td class=\"text\"><b>" + Escape(s.effect) +
+             "</b></td><td>" + std::to_string(s.joint) + "</td><td>" + FormatFixed(s.score, 1) +
+             "</td><td>" + FormatNumber(s.rms_before, kTableDigits) + " &rarr; " +
+             FormatNumber(s.rms_after, kTableDigits) + ChangeBadge(s.rms_before, s.rms_after) +
+             "</td><td class=\"text\">" + Parameters(s.params) + "</td><td class=\"text\"><code>" +
+             Escape(s.spec) + "</code></td></tr>\n";
+  }
+  *html += "</tbody>\n</table>\n</section>\n";
+}
+
+std::string Concentrations(const JointFinding& f) {
+  if (f.concentrations.empty()) return "<span class=\"muted\">nowhere in particular</span>";
+  std::string s;
+  for (const Concentration& c : f.concentrations) {
+    if (!s.empty()) s += "<br>";
+    s += "<b>" + Escape(c.variable) + "</b>: " + FormatFixed(100.0 * c.explained, 0) +
+         "% of the residual variance; worst bin [" + FormatNumber(c.bin_low, kTableDigits) + ", " +
+         FormatNumber(c.bin_high, kTableDigits) + "] with RMS " +
+         FormatNumber(c.bin_rms, kTableDigits);
+  }
+  return s;
+}
+
+void AppendFindings(const Diagnosis& d, std::string* html) {
+  if (d.joints.empty()) return;
+  *html +=
+      "<section id=\"findings\">\n<h2>Findings per joint</h2>\n<table>\n<thead><tr>"
+      "<th>Joint</th><th>Residual RMS</th><th>nMSE</th><th title=\"From successive "
+      "differences of the residual\">Noise std (estimate)</th><th class=\"text\">Residual "
+      "concentrates along</th></tr></thead>\n<tbody>\n";
+  for (const JointFinding& f : d.joints) {
+    *html += "<tr><td>" + std::to_string(f.joint) + "</td><td>" +
+             FormatNumber(f.rms, kTableDigits) + "</td><td>" + FormatNumber(f.nmse, kTableDigits) +
+             "</td><td>" + FormatNumber(f.noise_std_estimate, kTableDigits) +
+             "</td><td class=\"text\">" + Concentrations(f) + "</td></tr>\n";
+  }
+  *html += "</tbody>\n</table>\n</section>\n";
+}
+
+// One section per joint with its plots (`wide`: one entry per plot, whether it spans the
+// page); `next_plot` numbers the plots across the page.
+void AppendJoint(const ReportData& data, const JointData& joint, const std::vector<bool>& wide,
+                 int* next_plot, std::string* html) {
+  const std::string j = std::to_string(joint.joint);
+  *html += "<section class=\"joint\" id=\"joint-" + j + "\">\n<h2>Joint " + j + "</h2>\n";
+  if (data.has_diagnosis) {
+    for (const JointFinding& f : data.diagnosis.joints) {
+      if (f.joint != joint.joint) continue;
+      *html += "<p>Residual RMS " + FormatNumber(f.rms, kTableDigits) + ", nMSE " +
+               FormatNumber(f.nmse, kTableDigits) + ", noise std about " +
+               FormatNumber(f.noise_std_estimate, kTableDigits) + ".";
+      if (!f.concentrations.empty()) {
+        *html += " The residual concentrates along <b>" +
+                 Escape(f.concentrations.front().variable) + "</b>.";
+      }
+      *html += "</p>\n";
+    }
+    for (const Suggestion& s : data.diagnosis.suggestions) {
+      if (s.joint != joint.joint) continue;
+      *html += "<p>Suggested: <code>" + Escape(s.spec) + "</code> (evidence gain " +
+               FormatFixed(s.score, 1) + " nats).</p>\n";
+    }
+  }
+  if (wide.empty()) {
+    *html += "<p class=\"muted\">No samples.</p>\n</section>\n";
+    return;
+  }
+  *html += "<div class=\"plots\">\n";
+  for (const bool w : wide) {
+    *html += std::string("<div class=\"plot") + (w ? " wide" : "") + "\" data-plot=\"" +
+             std::to_string((*next_plot)++) + "\"></div>\n";
+  }
+  *html += "</div>\n</section>\n";
+}
+
+}  // namespace
+
+std::string RenderHtml(const ReportData& data, int max_points_per_plot) {
+  CheckInput(data, max_points_per_plot);
+
+  // The plots' data, one joint at a time (so that only one joint's copies are held at once).
+  std::string plot_json;
+  std::vector<std::vector<bool>> layout;  // per joint, per plot: wide
+  std::size_t num_plots = 0;
+  for (const JointData& joint : data.joints) {
+    layout.emplace_back();
+    for (const Plot& plot : JointPlots(joint)) {
+      if (num_plots++ > 0) plot_json += ",\n";
+      AppendPlotJson(plot, max_points_per_plot, &plot_json);
+      layout.back().push_back(plot.wide);
+    }
+  }
+
+  std::string html;
+  html += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
+  // Nothing may be loaded from anywhere: the report is one file.
+  html +=
+      "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; "
+      "script-src 'unsafe-inline'; style-src 'unsafe-inline'\">\n";
+  html += "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n";
+  html += "<title>" + Escape(data.title) + "</title>\n<style>";
+  html += internal::kReportCss;
+  html += "</style>\n</head>\n<body>\n";
+  html +=
+      "<div id=\"status\" class=\"status\" data-state=\"loading\" data-errors=\"0\" "
+      "data-plots=\"" +
+      std::to_string(num_plots) +
+      "\" data-plots-rendered=\"0\" hidden>"
+      "</div>\n<script>";
+  html += internal::kReportErrorScript;
+  html += "</script>\n";
+
+  AppendHeader(data, &html);
+  html += "<main>\n";
+  AppendErrors(data, &html);
+  if (data.has_diagnosis) {
+    AppendSuggestions(data.diagnosis, &html);
+    AppendFindings(data.diagnosis, &html);
+  }
+  if (num_plots > 0) {
+    html +=
+        "<p class=\"hint\">Plots: drag to zoom (time range, or a box on the residual "
+        "plots), double-click to reset, hover for values, click a legend entry to hide or "
+        "show it. Residual = measured - the first prediction.</p>\n"
+        "<noscript><p>The plots need JavaScript.</p></noscript>\n";
+  }
+  int next_plot = 0;
+  for (std::size_t j = 0; j < data.joints.size(); ++j) {
+    AppendJoint(data, data.joints[j], layout[j], &next_plot, &html);
+  }
+  html += "</main>\n<footer>structgp report</footer>\n";
+
+  html += "<script type=\"application/json\" id=\"report-data\">{\"plots\":[";
+  html += plot_json;
+  html += "]}</script>\n<script>";
+  html += internal::kReportScript;
+  html += "</script>\n</body>\n</html>\n";
+  return html;
+}
+
+}  // namespace report
+}  // namespace structgp

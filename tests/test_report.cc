@@ -1,0 +1,588 @@
+// The HTML report: self-contained (nothing loaded from anywhere), every string from the data
+// escaped, series thinned to the limit with their extremes kept, non-finite numbers as null,
+// the suggestions and the "no missing effect" verdict; and, in a real headless Chromium, the
+// page runs without a script error and draws every plot (DOM markers written by the page's
+// script, its zoom/hover self-test, and a screenshot that is not blank).
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <zlib.h>
+
+#include "structgp/report/report.h"
+
+namespace structgp {
+namespace report {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr unsigned kSeed = 20240611;
+// Strings that would break the page if written unescaped.
+const char kHostileLabel[] = "</script><script>window.pwned=1</script><b>x</b>&amp;\"'";
+const char kHostileFile[] = "<x>&\"";
+
+int CountOf(const std::string& text, const std::string& needle) {
+  int count = 0;
+  for (std::size_t at = text.find(needle); at != std::string::npos;
+       at = text.find(needle, at + 1)) {
+    ++count;
+  }
+  return count;
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// A joint's log: a smooth torque with noise, a model that misses a Coulomb step, a second
+// model that has it. `spike` (if < n) puts a large value into the measurements.
+JointData MakeJoint(int joint, int n, std::mt19937* rng, std::size_t spike = SIZE_MAX) {
+  std::normal_distribution<double> noise(0.0, 0.05);
+  JointData d;
+  d.joint = joint;
+  PredictionSeries before{"pol", {}, {}}, after{"pol + coulomb@" + std::to_string(joint), {}, {}};
+  for (int i = 0; i < n; ++i) {
+    const double t = 0.002 * i;
+    const double q = std::sin(0.7 * t + joint), qd = 0.7 * std::cos(0.7 * t + joint);
+    const double smooth = 2.0 * std::sin(q) + 0.5 * qd;
+    const double coulomb = 0.4 * (qd > 0 ? 1.0 : -1.0);
+    d.t.push_back(t);
+    d.q.push_back(q);
+    d.qd.push_back(qd);
+    d.measured.push_back(smooth + coulomb + noise(*rng));
+    before.mean.push_back(smooth);
+    before.std.push_back(0.1);
+    after.mean.push_back(smooth + coulomb);
+  }
+  if (spike < d.measured.size()) d.measured[spike] = 50.0;
+  d.predictions = {before, after};
+  return d;
+}
+
+Diagnosis MakeDiagnosis(int joints, bool with_suggestions) {
+  Diagnosis d;
+  d.num_samples = 1000;
+  d.model = "pol";
+  d.noise_std = 0.02;
+  for (int j = 1; j <= joints; ++j) {
+    JointFinding f;
+    f.joint = j;
+    f.rms = 0.4;
+    f.nmse = 0.05;
+    f.noise_std_estimate = 0.05;
+    f.concentrations = {{"qd" + std::to_string(j), 0.8, -0.01, 0.01, 0.45}};
+    d.joints.push_back(f);
+  }
+  if (with_suggestions) {
+    Suggestion s;
+    s.effect = "coulomb";
+    s.joint = 1;
+    s.score = 812.34;
+    s.rms_before = 0.40;
+    s.rms_after = 0.052;
+    s.spec = "coulomb@1";
+    d.suggestions.push_back(s);
+    Suggestion c;
+    c.effect = "cogging";
+    c.joint = 2;
+    c.score = 35.2;
+    c.rms_before = 0.2;
+    c.rms_after = 0.15;
+    c.params = {{"period", 0.3}};
+    c.spec = "cogging@2:period=0.3";
+    d.suggestions.push_back(c);
+  }
+  return d;
+}
+
+ReportData MakeReport(int joints, int n, bool with_suggestions) {
+  std::mt19937 rng(kSeed);
+  ReportData data;
+  data.data_source = "logs/run1.csv.gz";
+  data.notes = {"synthetic data"};
+  for (int j = 1; j <= joints; ++j) data.joints.push_back(MakeJoint(j, n, &rng));
+  data.has_diagnosis = true;
+  data.diagnosis = MakeDiagnosis(joints, with_suggestions);
+  ModelErrors before{"pol", {}, {}}, after{"pol + coulomb@1", {}, {}};
+  for (int j = 0; j < joints; ++j) {
+    before.rms.push_back(0.4);
+    before.nmse.push_back(0.05);
+    after.rms.push_back(0.052);
+    after.nmse.push_back(0.0009);
+  }
+  data.errors = {before, after};
+  return data;
+}
+
+// The text of the plot data embedded in the page.
+std::string PlotDataText(const std::string& html) {
+  const std::string open = "<script type=\"application/json\" id=\"report-data\">";
+  const std::size_t begin = html.find(open);
+  const std::size_t end = html.find("</script>", begin);
+  if (begin == std::string::npos || end == std::string::npos) {
+    ADD_FAILURE() << "no plot data in the page";
+    return "{}";
+  }
+  return html.substr(begin + open.size(), end - begin - open.size());
+}
+
+json PlotData(const std::string& html) { return json::parse(PlotDataText(html)); }
+
+TEST(Report, HasNoExternalReference) {
+  const std::string html = Lower(RenderHtml(MakeReport(2, 500, true)));
+  for (const char* bad : {"http://", "https://", "src=", "url(", "@import", "<link", "<iframe",
+                          "<img", "<object", "<embed"}) {
+    EXPECT_EQ(html.find(bad), std::string::npos) << "found '" << bad << "'";
+  }
+  // In-page links only.
+  const std::regex href("href\\s*=\\s*\"([^\"]*)\"");
+  int links = 0;
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), href); it != std::sregex_iterator();
+       ++it, ++links) {
+    EXPECT_EQ((*it)[1].str().rfind('#', 0), 0u) << (*it)[1].str();
+  }
+  EXPECT_EQ(links, 2);  // the two joints in the navigation
+  // The content security policy forbids loading anything.
+  EXPECT_NE(html.find("default-src 'none'"), std::string::npos);
+}
+
+TEST(Report, EscapesEveryStringFromTheData) {
+  ReportData data = MakeReport(1, 100, true);
+  data.title = kHostileLabel;
+  data.data_source = kHostileFile;
+  data.notes = {kHostileLabel};
+  data.joints[0].predictions[0].label = kHostileLabel;
+  data.errors[0].label = kHostileLabel;
+  data.diagnosis.model = kHostileFile;
+  data.diagnosis.suggestions[0].effect = kHostileLabel;
+  data.diagnosis.suggestions[0].spec = kHostileFile;
+  data.diagnosis.suggestions[1].params = {{kHostileLabel, 1.0}};
+  data.diagnosis.joints[0].concentrations[0].variable = kHostileFile;
+  const std::string html = RenderHtml(data);
+
+  EXPECT_EQ(html.find("pwned=1</script>"), std::string::npos);
+  EXPECT_EQ(html.find("<b>x</b>"), std::string::npos);
+  EXPECT_EQ(html.find(kHostileFile), std::string::npos);
+  EXPECT_NE(html.find("&lt;x&gt;&amp;&quot;"), std::string::npos);
+  EXPECT_NE(html.find("<title>&lt;/script&gt;&lt;script&gt;window.pwned=1"), std::string::npos);
+  // Exactly the page's own three script elements: error handler, data, plots.
+  EXPECT_EQ(CountOf(html, "<script"), 3);
+  EXPECT_EQ(CountOf(html, "</script>"), 3);
+  // The label comes back intact from the embedded data.
+  const json plots = PlotData(html);
+  EXPECT_EQ(plots["plots"][0]["series"][1]["label"], kHostileLabel);
+  EXPECT_EQ(plots["plots"][1]["series"][0]["label"], std::string("measured - ") + kHostileLabel);
+}
+
+TEST(Report, ThinsEachSeriesToTheLimitKeepingExtremes) {
+  SCOPED_TRACE("seed " + std::to_string(kSeed));
+  std::mt19937 rng(kSeed);
+  const int n = 10000, max_points = 1000;
+  const std::size_t spike = 6789;
+  ReportData data;
+  data.joints.push_back(MakeJoint(1, n, &rng, spike));
+  data.joints.push_back(MakeJoint(2, n, &rng));
+  data.joints[1].q.clear();  // no q: no residual-vs-q plot for joint 2
+  const json plots = PlotData(RenderHtml(data, max_points))["plots"];
+
+  // Joint 1: time, residual vs qd, residual vs q; joint 2: time, residual vs qd.
+  ASSERT_EQ(plots.size(), 5u);
+  EXPECT_EQ(plots[0]["type"], "line");
+  EXPECT_EQ(plots[1]["type"], "scatter");
+  EXPECT_EQ(plots[1]["xLabel"], "qd1");
+  EXPECT_EQ(plots[2]["xLabel"], "q1");
+  EXPECT_EQ(plots[4]["xLabel"], "qd2");
+  ASSERT_EQ(plots[0]["series"].size(), 3u);  // measured and the two predictions
+  int series = 0;
+  for (const json& plot : plots) {
+    for (const json& s : plot["series"]) {
+      ++series;
+      EXPECT_EQ(s["samples"], n);
+      // Noisy data: each of the max_points / 2 buckets has a distinct minimum and maximum.
+      EXPECT_EQ(s["x"].size(), static_cast<std::size_t>(max_points));
+      EXPECT_EQ(s["y"].size(), static_cast<std::size_t>(max_points));
+      EXPECT_EQ(s.contains("lo"), s["label"] == "pol" && plot["type"] == "line");
+      if (s.contains("lo")) {
+        EXPECT_EQ(s["lo"].size(), s["y"].size());
+        EXPECT_EQ(s["hi"].size(), s["y"].size());
+        for (std::size_t i = 0; i < s["y"].size(); ++i) {
+          EXPECT_NEAR(s["hi"][i].get<double>() - s["lo"][i].get<double>(), 0.4, 1e-6);
+        }
+      }
+      // Samples stay in time order.
+      if (plot["type"] == "line") {
+        EXPECT_TRUE(std::is_sorted(s["x"].begin(), s["x"].end()));
+      }
+    }
+  }
+  EXPECT_EQ(series, 3 + 1 + 1 + 3 + 1);
+
+  // The spike survives the thinning, in the time plot and in the residual plots.
+  const json& measured = plots[0]["series"][0];
+  const auto peak = std::max_element(measured["y"].begin(), measured["y"].end());
+  EXPECT_EQ(*peak, 50.0);
+  const std::size_t at = std::distance(measured["y"].begin(), peak);
+  EXPECT_NEAR(measured["x"][at].get<double>(), 0.002 * spike, 1e-9);
+  const json& residual = plots[1]["series"][0]["y"];
+  EXPECT_GT(*std::max_element(residual.begin(), residual.end()), 45.0);
+}
+
+TEST(Report, KeepsEverySampleUnderTheLimit) {
+  std::mt19937 rng(kSeed);
+  ReportData data;
+  data.joints.push_back(MakeJoint(3, 300, &rng));
+  const json plots = PlotData(RenderHtml(data))["plots"];
+  ASSERT_EQ(plots.size(), 3u);
+  const json& measured = plots[0]["series"][0];
+  ASSERT_EQ(measured["y"].size(), 300u);
+  for (int i = 0; i < 300; ++i) {
+    // Eight significant digits.
+    EXPECT_NEAR(measured["y"][i].get<double>(), data.joints[0].measured[i],
+                1e-7 * std::abs(data.joints[0].measured[i]));
+    EXPECT_NEAR(measured["x"][i].get<double>(), data.joints[0].t[i], 1e-12 + 1e-7 * 0.002 * i);
+  }
+}
+
+TEST(Report, WritesNonFiniteNumbersAsNull) {
+  std::mt19937 rng(kSeed);
+  ReportData data;
+  data.joints.push_back(MakeJoint(1, 50, &rng));
+  JointData& j = data.joints[0];
+  j.measured[3] = std::numeric_limits<double>::quiet_NaN();
+  j.measured[4] = std::numeric_limits<double>::infinity();
+  j.qd[5] = -std::numeric_limits<double>::infinity();
+  j.predictions[0].std[6] = std::numeric_limits<double>::quiet_NaN();
+  const std::string html = RenderHtml(data);
+  const std::string lower = Lower(PlotDataText(html));
+  EXPECT_EQ(lower.find("nan"), std::string::npos);
+  EXPECT_EQ(lower.find("inf"), std::string::npos);
+  const json plots = PlotData(html)["plots"];  // parses: strict JSON
+  EXPECT_TRUE(plots[0]["series"][0]["y"][3].is_null());
+  EXPECT_TRUE(plots[0]["series"][0]["y"][4].is_null());
+  EXPECT_TRUE(plots[0]["series"][1]["lo"][6].is_null());
+  EXPECT_TRUE(plots[1]["series"][0]["x"][5].is_null());
+  EXPECT_TRUE(plots[1]["series"][0]["y"][3].is_null());
+
+  // Thinned: a bucket without a finite sample keeps a gap.
+  ReportData gap;
+  gap.joints.push_back(MakeJoint(1, 1000, &rng));
+  for (int i = 500; i < 600; ++i) {
+    gap.joints[0].measured[i] = std::numeric_limits<double>::quiet_NaN();
+  }
+  const json thinned = PlotData(RenderHtml(gap, 100))["plots"][0]["series"][0]["y"];
+  EXPECT_EQ(std::count(thinned.begin(), thinned.end(), nullptr), 5);  // 5 buckets of 20
+}
+
+TEST(Report, RendersSuggestions) {
+  const std::string html = RenderHtml(MakeReport(2, 200, true));
+  EXPECT_EQ(html.find("No missing effect"), std::string::npos);
+  EXPECT_NE(html.find("2 missing effects found"), std::string::npos);
+  EXPECT_NE(html.find("<code>--effects coulomb@1,cogging@2:period=0.3</code>"), std::string::npos);
+  EXPECT_NE(html.find("<code>cogging@2:period=0.3</code>"), std::string::npos);
+  EXPECT_NE(html.find("812.3"), std::string::npos);  // score, nats
+  EXPECT_NE(html.find("period = 0.3"), std::string::npos);
+  // Held-out RMS 0.4 -> 0.052: -87%.
+  EXPECT_NE(html.find("0.4 &rarr; 0.052<span class=\"chg better\">-87%</span>"), std::string::npos);
+  // Findings per joint: where the residual concentrates.
+  EXPECT_NE(html.find("<b>qd2</b>: 80% of the residual variance"), std::string::npos);
+  // The suggestion listed again in its joint's section.
+  EXPECT_NE(html.find("Suggested: <code>coulomb@1</code>"), std::string::npos);
+}
+
+TEST(Report, SaysWhenNoMissingEffectIsFound) {
+  const std::string html = RenderHtml(MakeReport(2, 200, false));
+  EXPECT_NE(html.find("No missing effect was found."), std::string::npos);
+  EXPECT_EQ(html.find("--effects "), std::string::npos);
+
+  // Without a diagnosis there is no verdict at all.
+  ReportData data = MakeReport(1, 100, false);
+  data.has_diagnosis = false;
+  const std::string plain = RenderHtml(data);
+  EXPECT_EQ(plain.find("No missing effect"), std::string::npos);
+  EXPECT_EQ(plain.find("id=\"suggestions\""), std::string::npos);
+}
+
+TEST(Report, ComparesErrorsOfTheModels) {
+  ReportData data = MakeReport(2, 100, false);
+  data.errors[1].rms[1] = 0.42;  // worse on joint 2
+  const std::string html = RenderHtml(data);
+  EXPECT_NE(html.find("<th class=\"text\" colspan=\"2\">pol + coulomb@1</th>"), std::string::npos);
+  EXPECT_NE(html.find("0.052<span class=\"chg better\">-87%</span>"), std::string::npos);
+  EXPECT_NE(html.find("0.42<span class=\"chg worse\">+5.0%</span>"), std::string::npos);
+  EXPECT_NE(html.find("0.0009<span class=\"chg better\">-98%</span>"), std::string::npos);
+  // Without errors, no table.
+  data.errors.clear();
+  EXPECT_EQ(RenderHtml(data).find("id=\"errors\""), std::string::npos);
+}
+
+TEST(Report, RejectsInconsistentInput) {
+  std::mt19937 rng(kSeed);
+  ReportData data;
+  data.joints.push_back(MakeJoint(1, 20, &rng));
+  EXPECT_THROW(RenderHtml(data, 1), std::invalid_argument);
+  data.joints[0].predictions[1].mean.pop_back();
+  try {
+    RenderHtml(data);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("has 19 values, expected 20"), std::string::npos)
+        << e.what();
+  }
+  data.joints[0].predictions[1].mean.push_back(0.0);
+  data.joints[0].q.resize(3);
+  EXPECT_THROW(RenderHtml(data), std::invalid_argument);
+  data.joints[0].q.clear();  // empty is allowed: no residual-vs-q plot
+  EXPECT_NO_THROW(RenderHtml(data));
+}
+
+// ---- headless browser -------------------------------------------------------------------------
+
+// Chromium's path: $STRUCTGP_CHROMIUM, else chromium or chromium-browser on the PATH; empty
+// when there is none.
+std::string FindChromium() {
+  if (const char* env = std::getenv("STRUCTGP_CHROMIUM"); env != nullptr && *env != '\0') {
+    return env;
+  }
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path != nullptr ? path : "");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    for (const char* name : {"chromium", "chromium-browser"}) {
+      const fs::path candidate = fs::path(dir) / name;
+      if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+  }
+  return "";
+}
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// The argument quoted for the shell (the paths used here hold no single quote).
+std::string Quoted(const std::string& argument) {
+  EXPECT_EQ(argument.find('\''), std::string::npos) << argument;
+  return "'" + argument + "'";
+}
+
+// Runs Chromium headless, with a fresh profile, on `url` with `action` (--dump-dom or
+// --screenshot=...). Returns the exit status; stdout and stderr go to the files named.
+int RunChromium(const std::string& chromium, const fs::path& dir, const std::string& url,
+                const std::string& action, const fs::path& out, const fs::path& err) {
+  const fs::path profile = dir / ("profile-" + out.stem().string());
+  const std::vector<std::string> arguments = {
+      "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+      "--disable-background-networking", "--disable-component-update", "--disable-sync",
+      "--hide-scrollbars", "--window-size=1280,1600", "--user-data-dir=" + profile.string(),
+      "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", action, url};
+  std::string command = "timeout 60 " + Quoted(chromium);
+  for (const std::string& argument : arguments) command += " " + Quoted(argument);
+  command += " > " + Quoted(out.string()) + " 2> " + Quoted(err.string());
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string Attribute(const std::string& tag, const std::string& name) {
+  const std::regex pattern(name + "=\"([^\"]*)\"");
+  std::smatch match;
+  return std::regex_search(tag, match, pattern) ? match[1].str() : "<absent>";
+}
+
+// Pixels of a PNG file as 0xRRGGBB (8-bit RGB or RGBA, not interlaced: what Chromium writes).
+std::vector<std::uint32_t> DecodePng(const std::string& png, int* width, int* height) {
+  const auto u32 = [&](std::size_t at) {
+    return (std::uint32_t{static_cast<unsigned char>(png[at])} << 24) |
+           (std::uint32_t{static_cast<unsigned char>(png[at + 1])} << 16) |
+           (std::uint32_t{static_cast<unsigned char>(png[at + 2])} << 8) |
+           std::uint32_t{static_cast<unsigned char>(png[at + 3])};
+  };
+  if (png.size() < 8 || png.compare(0, 8, "\x89PNG\r\n\x1a\n") != 0) {
+    throw std::runtime_error("not a PNG file");
+  }
+  std::string idat;
+  int channels = 0;
+  for (std::size_t at = 8; at + 8 <= png.size();) {
+    const std::uint32_t length = u32(at);
+    const std::string type = png.substr(at + 4, 4);
+    if (at + 12 + length > png.size()) throw std::runtime_error("truncated PNG chunk");
+    const std::size_t data = at + 8;
+    if (type == "IHDR") {
+      *width = static_cast<int>(u32(data));
+      *height = static_cast<int>(u32(data + 4));
+      const int depth = png[data + 8], color = png[data + 9], interlace = png[data + 12];
+      if (depth != 8 || (color != 2 && color != 6) || interlace != 0) {
+        throw std::runtime_error("unsupported PNG format");
+      }
+      channels = color == 6 ? 4 : 3;
+    } else if (type == "IDAT") {
+      idat.append(png, data, length);
+    }
+    at += 12 + length;
+  }
+  if (channels == 0) throw std::runtime_error("PNG without IHDR");
+  const std::size_t stride = static_cast<std::size_t>(*width) * channels;
+  std::vector<unsigned char> raw((stride + 1) * *height);
+  uLongf raw_size = raw.size();
+  if (uncompress(raw.data(), &raw_size, reinterpret_cast<const Bytef*>(idat.data()), idat.size()) !=
+          Z_OK ||
+      raw_size != raw.size()) {
+    throw std::runtime_error("bad PNG image data");
+  }
+  // Undo the per-row filters (PNG specification, section 9).
+  std::vector<unsigned char> image(stride * *height), zero(stride, 0);
+  for (int y = 0; y < *height; ++y) {
+    const unsigned char* in = &raw[y * (stride + 1) + 1];
+    const int filter = raw[y * (stride + 1)];
+    unsigned char* row = &image[y * stride];
+    const unsigned char* up = y > 0 ? &image[(y - 1) * stride] : zero.data();
+    for (std::size_t i = 0; i < stride; ++i) {
+      const int a = i >= static_cast<std::size_t>(channels) ? row[i - channels] : 0;
+      const int b = up[i];
+      const int c = i >= static_cast<std::size_t>(channels) ? up[i - channels] : 0;
+      int predictor = 0;
+      switch (filter) {
+        case 0:
+          predictor = 0;
+          break;
+        case 1:
+          predictor = a;
+          break;
+        case 2:
+          predictor = b;
+          break;
+        case 3:
+          predictor = (a + b) / 2;
+          break;
+        case 4: {
+          const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+          predictor = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
+          break;
+        }
+        default:
+          throw std::runtime_error("bad PNG filter");
+      }
+      row[i] = static_cast<unsigned char>(in[i] + predictor);
+    }
+  }
+  std::vector<std::uint32_t> pixels(static_cast<std::size_t>(*width) * *height);
+  for (std::size_t p = 0; p < pixels.size(); ++p) {
+    const unsigned char* px = &image[p * channels];
+    pixels[p] = (std::uint32_t{px[0]} << 16) | (std::uint32_t{px[1]} << 8) | px[2];
+  }
+  return pixels;
+}
+
+TEST(ReportBrowser, RendersEveryPlotWithoutScriptErrors) {
+  const std::string chromium = FindChromium();
+  if (chromium.empty()) {
+    GTEST_SKIP() << "chromium is not installed (scripts/install-deps.sh installs it; or set "
+                    "STRUCTGP_CHROMIUM): the report's browser test is skipped";
+  }
+  const fs::path dir =
+      fs::temp_directory_path() / ("structgp-report-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+
+  ReportData data = MakeReport(2, 5000, true);
+  data.title = kHostileLabel;
+  data.data_source = kHostileFile;
+  data.joints[1].predictions[1].label = kHostileLabel;
+  data.joints[0].measured[1234] = std::numeric_limits<double>::quiet_NaN();
+  // A joint with measurements only, and no time: plotted against the sample index.
+  std::mt19937 rng(kSeed);
+  data.joints.push_back(MakeJoint(3, 2000, &rng));
+  data.joints.back().predictions.clear();
+  data.joints.back().t.clear();
+  const fs::path page = dir / "report.html";
+  {
+    std::ofstream out(page, std::ios::binary);
+    out << RenderHtml(data, 1500);
+    ASSERT_TRUE(out.good());
+  }
+  const int num_plots = 3 + 3 + 1;
+
+  // 1. The DOM after the page's script has run, with its zoom/hover self-test.
+  const int dom_status = RunChromium(chromium, dir, "file://" + page.string() + "#selftest",
+                                     "--dump-dom", dir / "dom.html", dir / "dom.log");
+  ASSERT_EQ(dom_status, 0) << ReadFile(dir / "dom.log");
+  const std::string dom = ReadFile(dir / "dom.html");
+  const std::string log = ReadFile(dir / "dom.log");
+  std::smatch match;
+  ASSERT_TRUE(std::regex_search(dom, match, std::regex("<div id=\"status\"[^>]*>")))
+      << dom.substr(0, 2000);
+  const std::string status = match[0].str();
+  // The status element with the error messages the page wrote into it.
+  const std::size_t status_at = static_cast<std::size_t>(match.position(0));
+  const std::string messages = dom.substr(status_at, dom.find("<script", status_at) - status_at);
+  EXPECT_EQ(Attribute(status, "data-state"), "done") << status;
+  EXPECT_EQ(Attribute(status, "data-errors"), "0") << messages;
+  EXPECT_EQ(Attribute(status, "data-plots"), std::to_string(num_plots));
+  EXPECT_EQ(Attribute(status, "data-plots-rendered"), std::to_string(num_plots));
+  EXPECT_EQ(Attribute(status, "data-selftest"), "passed");
+  // Every plot drew marks.
+  int plots = 0;
+  const std::regex marks("data-marks=\"([0-9]+)\"");
+  for (auto it = std::sregex_iterator(dom.begin(), dom.end(), marks); it != std::sregex_iterator();
+       ++it, ++plots) {
+    EXPECT_GT(std::stoi((*it)[1].str()), 0) << "plot " << plots << " is blank";
+  }
+  EXPECT_EQ(plots, num_plots);
+  // The hostile label is text, not markup.
+  EXPECT_EQ(dom.find("<script>window.pwned"), std::string::npos);
+  EXPECT_EQ(dom.find("<b>x</b>"), std::string::npos);
+  // Nothing on the console: no uncaught error, no message at all from the page.
+  std::istringstream lines(log);
+  std::string line;
+  while (std::getline(lines, line)) {
+    EXPECT_EQ(line.find("Uncaught"), std::string::npos) << line;
+    EXPECT_EQ(line.find(":CONSOLE"), std::string::npos) << line;
+  }
+
+  // 2. A screenshot: the page is not one colour, and draws in many.
+  const fs::path shot = dir / "report.png";
+  const int shot_status =
+      RunChromium(chromium, dir, "file://" + page.string(), "--screenshot=" + shot.string(),
+                  dir / "shot.out", dir / "shot.log");
+  ASSERT_EQ(shot_status, 0) << ReadFile(dir / "shot.log");
+  int width = 0, height = 0;
+  const std::vector<std::uint32_t> pixels = DecodePng(ReadFile(shot), &width, &height);
+  EXPECT_EQ(width, 1280);
+  EXPECT_EQ(height, 1600);
+  const std::unordered_set<std::uint32_t> colours(pixels.begin(), pixels.end());
+  EXPECT_GT(colours.size(), 50u);
+  const auto background = std::count(pixels.begin(), pixels.end(), pixels.front());
+  EXPECT_LT(background, static_cast<long>(0.97 * pixels.size()));
+
+  if (!HasFailure()) {
+    fs::remove_all(dir);
+  } else {
+    std::printf("browser test files kept in %s\n", dir.c_str());
+  }
+}
+
+}  // namespace
+}  // namespace report
+}  // namespace structgp
