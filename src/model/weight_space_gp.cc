@@ -270,6 +270,69 @@ const Matrix& WeightSpaceGP::covariance_factor() const {
   return factor_;
 }
 
+WeightSpaceGPState WeightSpaceGP::State() const {
+  Commit(nullptr, nullptr, nullptr, nullptr);
+  WeightSpaceGPState state;
+  state.prior_variance = prior_variance_;
+  state.noise_variance = noise_variance_;
+  state.output_scales = output_scales_;
+  state.covariance_factor = factor_;
+  state.weights = weights_;
+  state.y_squared = y_squared_;
+  state.weight_sum = weight_sum_;
+  state.log_weight_sum = log_weight_sum_;
+  state.log_prior_broadening = log_prior_broadening_;
+  state.sample_count = sample_count_;
+  state.num_samples = num_samples_;
+  return state;
+}
+
+WeightSpaceGP WeightSpaceGP::FromState(const WeightSpaceGPState& state) {
+  const Eigen::Index P = state.output_scales.size();
+  if (P == 0) {
+    throw std::invalid_argument(
+        "WeightSpaceGP::FromState: output_scales is empty (need one per output)");
+  }
+  // Checks Lambda, sigma_n^2 and s and allocates everything.
+  WeightSpaceGP model(state.prior_variance, state.noise_variance, static_cast<int>(P),
+                      state.output_scales);
+  const Eigen::Index D = state.prior_variance.size();
+  RequireSize("WeightSpaceGP::FromState covariance_factor", state.covariance_factor.rows(), D,
+              "rows");
+  RequireSize("WeightSpaceGP::FromState covariance_factor", state.covariance_factor.cols(), D,
+              "columns");
+  RequireSize("WeightSpaceGP::FromState weights", state.weights.rows(), D, "rows");
+  RequireSize("WeightSpaceGP::FromState weights", state.weights.cols(), P, "columns");
+  RequireSize("WeightSpaceGP::FromState y_squared", state.y_squared.size(), P);
+  RequireFinite("WeightSpaceGP::FromState covariance_factor", state.covariance_factor);
+  RequireFinite("WeightSpaceGP::FromState weights", state.weights);
+  RequireFinite("WeightSpaceGP::FromState y_squared", state.y_squared);
+  if (!state.covariance_factor.triangularView<Eigen::StrictlyLower>().toDenseMatrix().isZero(0.0)) {
+    throw std::invalid_argument(
+        "WeightSpaceGP::FromState: covariance_factor must be upper-triangular (its strictly "
+        "lower part is not zero)");
+  }
+  if (!(state.covariance_factor.diagonal().array() > 0.0).all()) {
+    throw std::invalid_argument(
+        "WeightSpaceGP::FromState: covariance_factor must have a positive diagonal");
+  }
+  for (double v :
+       {state.weight_sum, state.log_weight_sum, state.log_prior_broadening, state.sample_count}) {
+    if (!std::isfinite(v)) {
+      throw std::invalid_argument("WeightSpaceGP::FromState: the evidence counters must be finite");
+    }
+  }
+  model.factor_ = state.covariance_factor;
+  model.weights_ = state.weights;
+  model.y_squared_ = state.y_squared;
+  model.weight_sum_ = state.weight_sum;
+  model.log_weight_sum_ = state.log_weight_sum;
+  model.log_prior_broadening_ = state.log_prior_broadening;
+  model.sample_count_ = state.sample_count;
+  model.num_samples_ = state.num_samples;
+  return model;
+}
+
 Vector WeightSpaceGP::effective_prior_variance() const {
   return prior_variance_ * std::exp(log_prior_broadening_);
 }

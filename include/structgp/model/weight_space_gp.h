@@ -56,6 +56,29 @@ struct EvidenceGradient {
   Vector d_log_output_scale;
 };
 
+/// The complete state of a WeightSpaceGP: everything its later results depend on, so that a
+/// model can be saved and restored exactly (io/model_file.h). Field names follow the model's
+/// accessors; the sums are the evidence counters of the samples seen since the last
+/// Fit/Reset, weighted and forgotten as described above.
+///
+/// Invariants (checked by WeightSpaceGP::FromState): prior_variance (D) > 0, noise_variance
+/// > 0, output_scales (P) > 0; covariance_factor is D x D, upper-triangular (strictly lower
+/// part exactly zero) with a positive diagonal; weights is D x P; y_squared has P entries;
+/// every value is finite.
+struct WeightSpaceGPState {
+  Vector prior_variance;              ///< Lambda (D)
+  double noise_variance = 0.0;        ///< sigma_n^2
+  Vector output_scales;               ///< s (P)
+  Matrix covariance_factor;           ///< S, A^{-1} = S S^T (D x D, upper-triangular)
+  Matrix weights;                     ///< W (D x P)
+  Vector y_squared;                   ///< per output, sum v y^2 (P)
+  double weight_sum = 0.0;            ///< sum v (effective_count())
+  double log_weight_sum = 0.0;        ///< sum log v
+  double log_prior_broadening = 0.0;  ///< log of the prior broadening by forgetting
+  double sample_count = 0.0;          ///< samples absorbed (with the sign of downdates)
+  long num_samples = 0;               ///< num_samples()
+};
+
 class WeightSpaceGP {
  public:
   /// A model of num_features features and num_outputs outputs, at the prior given by
@@ -122,6 +145,15 @@ class WeightSpaceGP {
   const Vector& prior_variance() const { return prior_variance_; }
   double noise_variance() const { return noise_variance_; }
   const Vector& output_scales() const { return output_scales_; }
+  /// The model's complete state, after applying any change staged by UpdateAndPredict (the
+  /// results of the model are unchanged by that). O(D^2) copy; allocates.
+  WeightSpaceGPState State() const;
+  /// A model in exactly the given state: every later result (prediction, update, evidence)
+  /// is bit-identical to that of the model State() was taken from. Allocates all storage.
+  /// Throws std::invalid_argument naming the field when the state breaks an invariant of
+  /// WeightSpaceGPState.
+  static WeightSpaceGP FromState(const WeightSpaceGPState& state);
+
   /// Sum of the weights of the samples in the posterior (m without forgetting).
   double effective_count() const { return weight_sum_; }
   /// Number of samples absorbed since the last Fit/Reset (Fit counts its samples).

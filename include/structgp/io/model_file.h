@@ -1,0 +1,77 @@
+#ifndef STRUCTGP_IO_MODEL_FILE_H_
+#define STRUCTGP_IO_MODEL_FILE_H_
+
+/// @file
+/// Saving a fitted RobotModel to a file and loading it back, exactly: the loaded model gives
+/// bit-identical predictions, components, coefficients and evidence, and it keeps learning
+/// (GaussianProcess::Add) exactly as the saved one would have.
+///
+/// Format (version 1). One JSON object, written atomically (WriteTextAtomically):
+///
+///     {
+///       "format": "structgp-model",  "version": 1,
+///       "checksum": "crc32:1a2b3c4d",
+///       "model": "pol+fri",  "effects": "coulomb@2",  "effect_list": [...],
+///       "options": {"form": "auto", "friction_width": 0.01, "broad_prior_std": 10.0},
+///       "num_joints": 2,  "uses_time": false,  "input_dim": 6,  "num_features": 139,
+///       "form": "weight_space",
+///       "hyperparameters": {"shape": [...], "log_block_scale": [...], "log_noise_std": -4.6,
+///                           "log_output_scale": [...], "kernel_parameters": [...]},
+///       "log_marginal_likelihood": 1234.5,  "num_samples": 4000,
+///       "weight_space": {...}        (weight-space models)
+///       "function_space": {...}      (function-space models)
+///     }
+///
+/// - Scalars are JSON numbers written with the shortest text that reads back to the same
+///   double; hyper-parameter vectors are JSON arrays of such numbers.
+/// - Matrices are objects {"rows", "cols", "layout", "encoding": "base64-f64le", "data"}: the
+///   doubles in little-endian IEEE-754 binary64, column by column ("layout": "column_major"),
+///   or only the upper triangle of each column ("upper_triangular"), base64-encoded.
+/// - "weight_space" holds the WeightSpaceGPState (factor S, weights W and the evidence
+///   counters); the model is rebuilt from it directly.
+/// - "function_space" holds the stored inputs and targets; the model is rebuilt by fitting
+///   them in one batch with the stored hyper-parameters (and kernel parameters). Predictions
+///   are then bit-identical to those of a model that was fitted in one batch, as every model
+///   made by Fit is; after online additions (GaussianProcess::Add) they agree to rounding.
+/// - "checksum" is the CRC-32 of the compact JSON text of the object without "checksum", so
+///   that any change to a number, a name or the payload is detected.
+/// - "effect_list" holds each effect's name, joints and parameters; "model" and "effects" are
+///   the same model in the text users write (ParseModelSpec, ParseEffectList).
+///
+/// A file written by a later format version, a file of another kind, a truncated, corrupted
+/// or hand-edited file is refused with a DataError naming the file and the problem (with the
+/// line and column for malformed JSON); loading never crashes on bad input.
+
+#include <string>
+
+#include "structgp/io/data_error.h"
+#include "structgp/model/robot_model.h"
+
+namespace structgp {
+
+/// The value of the "format" field.
+inline constexpr const char* kModelFileFormat = "structgp-model";
+/// The version written by SaveModel; LoadModel reads this version only.
+inline constexpr int kModelFileVersion = 1;
+
+/// The complete text of the model file of `model` (what SaveModel writes). Throws
+/// std::invalid_argument when the model is not fitted or holds a non-finite value.
+std::string ModelFileText(const RobotModel& model);
+
+/// Writes the model file atomically: readers (and a crash) see the old file or the complete
+/// new one. Throws std::invalid_argument as ModelFileText, DataError when the file cannot be
+/// written (the previous file is then left untouched).
+void SaveModel(const std::string& path, const RobotModel& model);
+
+/// Reads a model file. `path` only names the source in error messages. Throws DataError
+/// naming `path` and the problem.
+RobotModel ParseModelFile(const std::string& text, const std::string& path);
+
+/// Reads a model file written by SaveModel. Throws DataError naming the file and the problem:
+/// it cannot be read, is not JSON (with line and column), is not a structgp model file, has
+/// an unsupported version, fails its checksum, or holds an inconsistent model.
+RobotModel LoadModel(const std::string& path);
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_IO_MODEL_FILE_H_

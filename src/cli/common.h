@@ -1,0 +1,156 @@
+#ifndef STRUCTGP_SRC_CLI_COMMON_H_
+#define STRUCTGP_SRC_CLI_COMMON_H_
+
+// Shared pieces of the structgp program: exit codes and the errors that map to them, reading
+// data for a model, fitting with a hyper-parameter method, errors per joint, tables, and
+// writing every output only after all of them have been computed.
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "structgp/core/types.h"
+#include "structgp/diagnose/diagnosis.h"
+#include "structgp/io/robot_data.h"
+#include "structgp/model/robot_model.h"
+#include "structgp/report/report.h"
+
+namespace structgp {
+namespace cli {
+
+/// Exit codes of the program.
+inline constexpr int kExitOk = 0;
+/// A numerical failure: a factorisation failed, the evidence could not be evaluated.
+inline constexpr int kExitNumerical = 1;
+/// A mistake in the command line or an input file (also an output that cannot be written).
+inline constexpr int kExitUsage = 2;
+
+/// A command-line mistake found after parsing ("--effects 'x': unknown effect"): exit 2.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A numerical failure: exit 1.
+class NumericalError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Progress lines on stderr, "structgp fit: <text> [1.2 s]"; silent when quiet.
+class Progress {
+ public:
+  Progress(std::string command, bool quiet);
+  void Line(const std::string& text) const;
+  double seconds() const;
+
+ private:
+  std::string command_;
+  bool quiet_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+/// Reads a robot CSV file (ReadRobotCsv); expected_joints > 0 requires that many joints.
+RobotData ReadData(const std::string& path, int expected_joints = 0);
+
+/// The model's inputs for the data: (q, qd, qdd), then t when the model uses time. Throws
+/// DataError naming the file when the model needs t and the file has none.
+Matrix ModelInputs(const RobotModel& model, const RobotData& data);
+
+/// "pol", "pol+fri + coulomb@2,viscous@1".
+std::string ModelLabel(const ModelSpec& spec);
+
+/// Builds the model of --model and --effects text; UsageError naming the flag when either
+/// cannot be parsed or does not fit the robot.
+ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects);
+RobotModel MakeModel(const ModelSpec& spec, int num_joints);
+
+enum class HyperMethod { kMaximumLikelihood, kCrossValidation, kFixed };
+/// "ml", "cv", "fixed".
+HyperMethod ParseHyperMethod(const std::string& text);
+
+struct FitSettings {
+  HyperMethod method = HyperMethod::kMaximumLikelihood;
+  /// Contiguous folds of --hyper cv.
+  int cv_folds = 5;
+  /// rbf/rbfs with --hyper ml: the kernel's hyper-parameters are fitted on at most this many
+  /// rows, evenly spaced (each evidence evaluation is O(m^3)); the model then uses all rows.
+  int ml_max_rows = 1000;
+  /// Ceres prints one line per LBFGS iteration.
+  bool verbose = false;
+};
+
+/// What a fit did, for the summary.
+struct FitInfo {
+  std::string method;              // one line
+  std::vector<std::string> notes;  // more lines (bounds reached, rows used)
+  double seconds = 0.0;
+};
+
+/// Chooses the hyper-parameters by the method and fits the model to all rows of the data.
+/// Throws UsageError for a method the model cannot use, NumericalError when the fit fails.
+void FitModel(const RobotData& data, const FitSettings& settings, const Progress& progress,
+              RobotModel* model, FitInfo* info);
+
+/// Multi-line summary of a fitted model: samples, D, form, hyper-parameters, evidence and the
+/// friction and effect coefficients per joint.
+std::string FitSummary(const RobotModel& model, const RobotData& data, const FitInfo& info);
+
+/// Errors of predictions against measurements, per joint and overall.
+struct Errors {
+  Vector rms;                 // per joint
+  Vector nmse;                // per joint: MSE / variance of the measured torque
+  double overall_rms = 0.0;   // over every joint and sample
+  double overall_nmse = 0.0;  // mean of the per-joint nMSE
+};
+Errors ComputeErrors(const Matrix& predicted, const Matrix& measured);
+
+/// Predictions of a model on the data: mean and latent standard deviation (m x N).
+struct Predictions {
+  Matrix mean;
+  Matrix std;
+};
+Predictions Predict(const RobotModel& model, const RobotData& data);
+
+/// The entries of v as a std::vector.
+std::vector<double> ToStd(const Vector& v);
+/// The errors of one model for a report.
+report::ModelErrors ReportErrors(const std::string& label, const Errors& errors);
+
+/// A table with aligned columns; rows[0] is the header.
+std::string Table(const std::vector<std::vector<std::string>>& rows, int indent = 2);
+/// printf-style formatting into a string.
+std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+/// "-89.0%" style relative change from a to b.
+std::string RelativeChange(double before, double after);
+
+/// "Coulomb friction", "cogging (period 0.3 rad)", ...
+std::string DescribeEffect(const Suggestion& suggestion);
+/// The model with every suggestion of the diagnosis added to its effects.
+ModelSpec WithSuggestions(const ModelSpec& spec, const Diagnosis& diagnosis);
+/// Human summary of a diagnosis: per joint errors and noise, where the error concentrates,
+/// and each suggestion with the --effects text that adds it.
+std::string DiagnosisSummary(const Diagnosis& diagnosis, const ModelSpec& spec,
+                             const DiagnosisOptions& options);
+
+/// The per-joint series of a report for these data and predictions (one entry per model).
+std::vector<report::JointData> ReportJoints(
+    const RobotData& data, const std::vector<std::pair<std::string, Predictions>>& models);
+
+/// Files to write: path and contents. Every path is checked first (its directory exists, it is
+/// not a directory), then the files are written one by one, each atomically. Throws
+/// UsageError naming the flag when a check fails, so that nothing at all is written.
+struct OutputFile {
+  std::string flag;  // "--json"
+  std::string path;
+  std::string contents;
+};
+void CheckOutputPath(const std::string& flag, const std::string& path);
+void WriteOutputs(const std::vector<OutputFile>& files);
+
+}  // namespace cli
+}  // namespace structgp
+
+#endif  // STRUCTGP_SRC_CLI_COMMON_H_

@@ -1,0 +1,98 @@
+// structgp diagnose: where a model fails on a data file and which physical effect it misses.
+
+#include <cstdio>
+#include <string>
+
+#include "commands.h"
+#include "common.h"
+#include "structgp/io/model_file.h"
+#include "structgp/report/report.h"
+
+namespace structgp {
+namespace cli {
+namespace {
+
+class DiagnoseCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App* app) override {
+    CLI::App* cmd = app->add_subcommand(
+        "diagnose", "Find the physical effects a model is missing, from its errors on data");
+    cmd->add_option("--model", model_, "Model file written by 'structgp fit' (pol or motor base)")
+        ->required();
+    cmd->add_option("--data", data_,
+                    "Data in time order: CSV with q, qd, qdd and tau columns, and t to try "
+                    "drift")
+        ->required();
+    cmd->add_option("--json", json_, "Findings to write as JSON (replaced atomically)")->required();
+    cmd->add_option("--report", report_, "Also write a self-contained HTML report");
+    cmd->add_option("--folds", options_.folds, "Contiguous folds of the held-out check")
+        ->check(CLI::Range(2, 1000))
+        ->capture_default_str();
+    cmd->add_option("--min-evidence", options_.min_log_evidence_gain,
+                    "Minimum gain in log evidence (nats) for a suggestion")
+        ->check(CLI::Range(0.0, 1e9))
+        ->capture_default_str();
+    cmd->footer(
+        "Every candidate effect (viscous, coulomb, stribeck, offset, cogging, spring, drift)\n"
+        "on every joint is scored by the gain in log evidence of the joint's torque and by\n"
+        "blocked cross-validation; suggestions need both.\n"
+        "Example:\n"
+        "  structgp diagnose --model model.json --data test.csv --json findings.json "
+        "--report report.html");
+    return cmd;
+  }
+
+  int Run() override {
+    CheckOutputPath("--json", json_);
+    if (!report_.empty()) CheckOutputPath("--report", report_);
+    const RobotModel model = LoadModel(model_);
+    if (model.feature_map() == nullptr || model.gp().weight_space() == nullptr) {
+      throw UsageError("--model '" + model_ +
+                       "': diagnose needs a pol or motor model in "
+                       "weight-space form; this one is " +
+                       ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) + " form");
+    }
+    const RobotData data = ReadData(data_, model.num_joints());
+    const Matrix X = ModelInputs(model, data);
+    Diagnosis diagnosis;
+    try {
+      diagnosis = Diagnose(model, X, data.Y, data.t, options_);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(data_ + ": " + e.what());
+    } catch (const std::runtime_error& e) {
+      throw NumericalError(e.what());
+    }
+    std::vector<OutputFile> outputs = {{"--json", json_, ToJson(diagnosis)}};
+    if (!report_.empty()) {
+      const Predictions p = Predict(model, data);
+      const Errors e = ComputeErrors(p.mean, data.Y);
+      report::ReportData r;
+      r.title = "structgp diagnosis: " + ModelLabel(model.spec()) + " on " + data_;
+      r.data_source = data_;
+      const std::string label = ModelLabel(model.spec());
+      r.joints = ReportJoints(data, {{label, p}});
+      r.has_diagnosis = true;
+      r.diagnosis = diagnosis;
+      r.errors.push_back(ReportErrors(label, e));
+      r.notes.push_back("model file: " + model_);
+      outputs.push_back({"--report", report_, report::RenderHtml(r)});
+    }
+    std::printf("diagnosis of %s (%s) on %s: %d samples\n", ModelLabel(model.spec()).c_str(),
+                model_.c_str(), data_.c_str(), data.size());
+    std::fputs(DiagnosisSummary(diagnosis, model.spec(), options_).c_str(), stdout);
+    WriteOutputs(outputs);
+    for (const auto& f : outputs) std::printf("wrote %s\n", f.path.c_str());
+    return kExitOk;
+  }
+
+ private:
+  std::string model_, data_, json_, report_;
+  DiagnosisOptions options_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeDiagnoseCommand() { return std::make_unique<DiagnoseCommand>(); }
+
+}  // namespace cli
+}  // namespace structgp

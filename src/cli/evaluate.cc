@@ -1,0 +1,72 @@
+// structgp evaluate: errors of a model on a data file, per joint and overall.
+
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "commands.h"
+#include "common.h"
+#include "structgp/io/model_file.h"
+
+namespace structgp {
+namespace cli {
+namespace {
+
+class EvaluateCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App* app) override {
+    CLI::App* cmd = app->add_subcommand(
+        "evaluate", "RMS and normalised MSE of a model on a data file, per joint and overall");
+    cmd->add_option("--model", model_, "Model file written by 'structgp fit'")->required();
+    cmd->add_option("--data", data_, "Test data: CSV with q, qd, qdd and tau columns")->required();
+    cmd->add_option("--json", json_, "Also write the errors as JSON (replaced atomically)");
+    cmd->footer(
+        "nMSE of joint j is the mean squared error divided by the variance of the measured\n"
+        "tau_j; 'all' is the RMS over every joint and sample and the mean nMSE of the joints.\n"
+        "Example:\n"
+        "  structgp evaluate --model model.json --data test.csv --json errors.json");
+    return cmd;
+  }
+
+  int Run() override {
+    if (!json_.empty()) CheckOutputPath("--json", json_);
+    const RobotModel model = LoadModel(model_);
+    const RobotData data = ReadData(data_, model.num_joints());
+    const Predictions p = Predict(model, data);
+    const Errors e = ComputeErrors(p.mean, data.Y);
+    const int N = model.num_joints();
+
+    nlohmann::json doc;
+    doc["model"] = model_;
+    doc["label"] = ModelLabel(model.spec());
+    doc["data"] = data_;
+    doc["num_samples"] = data.size();
+    doc["joints"] = nlohmann::json::array();
+    std::vector<std::vector<std::string>> rows = {{"joint", "RMS", "nMSE"}};
+    for (int j = 0; j < N; ++j) {
+      doc["joints"].push_back({{"joint", j + 1}, {"rms", e.rms[j]}, {"nmse", e.nmse[j]}});
+      rows.push_back({std::to_string(j + 1), Format("%.4g", e.rms[j]), Format("%.4g", e.nmse[j])});
+    }
+    doc["overall"] = {{"rms", e.overall_rms}, {"nmse", e.overall_nmse}};
+    rows.push_back({"all", Format("%.4g", e.overall_rms), Format("%.4g", e.overall_nmse)});
+
+    std::printf("model  %s (%s)\ndata   %s: %d samples\n", ModelLabel(model.spec()).c_str(),
+                model_.c_str(), data_.c_str(), data.size());
+    std::fputs(Table(rows).c_str(), stdout);
+    if (!json_.empty()) {
+      WriteOutputs({{"--json", json_, doc.dump(2) + "\n"}});
+      std::printf("wrote %s\n", json_.c_str());
+    }
+    return kExitOk;
+  }
+
+ private:
+  std::string model_, data_, json_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeEvaluateCommand() { return std::make_unique<EvaluateCommand>(); }
+
+}  // namespace cli
+}  // namespace structgp

@@ -1,0 +1,115 @@
+// The structgp program: fit, predict, evaluate, diagnose, compare and demo.
+//
+// Exit codes: 0 success; 2 a mistake in the command line or an input file (the message names
+// the flag, or the file with line and column); 1 a numerical failure. Outputs are written only
+// once everything has been computed, each atomically, so a failed run leaves existing files
+// untouched.
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "common.h"
+#include "structgp/io/data_error.h"
+
+namespace structgp {
+namespace cli {
+namespace {
+
+int Fail(const std::string& context, const std::string& message, int code) {
+  std::fprintf(stderr, "%s: error: %s\n", context.c_str(), message.c_str());
+  return code;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app(
+      "structgp: Gaussian processes with structured kernels for robot inverse dynamics.\n"
+      "Fits a model of the joint torques from logged (q, qd, qdd, tau), and tells you which\n"
+      "physics it is missing (friction, cogging, offsets, drift).",
+      "structgp");
+  app.require_subcommand(1);
+  app.footer("Start with:  structgp demo\nEach subcommand has --help. Joints are 1-based.");
+  std::vector<std::unique_ptr<Command>> commands;
+  commands.push_back(MakeDemoCommand());
+  commands.push_back(MakeFitCommand());
+  commands.push_back(MakePredictCommand());
+  commands.push_back(MakeEvaluateCommand());
+  commands.push_back(MakeDiagnoseCommand());
+  commands.push_back(MakeCompareCommand());
+  std::vector<CLI::App*> subcommands;
+  subcommands.reserve(commands.size());
+  for (auto& c : commands) subcommands.push_back(c->Register(&app));
+
+  // CLI11 reports a misspelt subcommand as a missing one; name it instead.
+  if (argc > 1 && argv[1][0] != '-') {
+    std::string names;
+    bool known = false;
+    for (const CLI::App* sub : subcommands) {
+      known = known || sub->get_name() == argv[1];
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    if (!known) {
+      Fail("structgp",
+           std::string("unknown subcommand '") + argv[1] + "' (expected one of " + names + ")",
+           kExitUsage);
+      std::fprintf(stderr, "run 'structgp --help' for the options\n");
+      return kExitUsage;
+    }
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::string context = "structgp";
+    for (const CLI::App* sub : app.get_subcommands()) context += " " + sub->get_name();
+    Fail(context, e.what(), kExitUsage);
+    std::fprintf(stderr, "run '%s --help' for the options\n", context.c_str());
+    return kExitUsage;
+  }
+
+  for (size_t i = 0; i < commands.size(); ++i) {
+    if (!subcommands[i]->parsed()) continue;
+    const std::string context = "structgp " + subcommands[i]->get_name();
+    try {
+      return commands[i]->Run();
+    } catch (const UsageError& e) {
+      return Fail(context, e.what(), kExitUsage);
+    } catch (const DataError& e) {
+      return Fail(context, e.what(), kExitUsage);
+    } catch (const std::invalid_argument& e) {
+      return Fail(context, e.what(), kExitUsage);
+    } catch (const NumericalError& e) {
+      return Fail(context, e.what(), kExitNumerical);
+    } catch (const std::bad_alloc&) {
+      return Fail(context, "out of memory", kExitNumerical);
+    } catch (const std::exception& e) {
+      return Fail(context, e.what(), kExitNumerical);
+    }
+  }
+  return Fail("structgp", "no subcommand given", kExitUsage);
+}
+
+}  // namespace
+}  // namespace cli
+}  // namespace structgp
+
+int main(int argc, char** argv) {
+  try {
+    return structgp::cli::Main(argc, argv);
+  } catch (const std::exception& e) {
+    // Setting up the command line itself failed (out of memory): nothing else to report.
+    std::fprintf(stderr, "structgp: error: %s\n", e.what());
+    return structgp::cli::kExitNumerical;
+  }
+}

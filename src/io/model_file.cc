@@ -1,0 +1,631 @@
+#include "structgp/io/model_file.h"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "structgp/io/atomic_file.h"
+#include "structgp/model/weight_space_gp.h"
+
+namespace structgp {
+namespace {
+
+using Json = nlohmann::json;
+
+constexpr const char* kEncoding = "base64-f64le";
+constexpr const char* kColumnMajor = "column_major";
+constexpr const char* kUpperTriangular = "upper_triangular";
+constexpr const char* kBase64Alphabet =
+    "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+// ---- encoding -------------------------------------------------------------------------------
+
+std::string Base64Encode(const std::string& bytes) {
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const uint32_t v = (uint32_t{static_cast<unsigned char>(bytes[i])} << 16) |
+                       (uint32_t{static_cast<unsigned char>(bytes[i + 1])} << 8) |
+                       uint32_t{static_cast<unsigned char>(bytes[i + 2])};
+    out += kBase64Alphabet[(v >> 18) & 63];
+    out += kBase64Alphabet[(v >> 12) & 63];
+    out += kBase64Alphabet[(v >> 6) & 63];
+    out += kBase64Alphabet[v & 63];
+  }
+  const size_t rest = bytes.size() - i;
+  if (rest > 0) {
+    uint32_t v = uint32_t{static_cast<unsigned char>(bytes[i])} << 16;
+    if (rest == 2) v |= uint32_t{static_cast<unsigned char>(bytes[i + 1])} << 8;
+    out += kBase64Alphabet[(v >> 18) & 63];
+    out += kBase64Alphabet[(v >> 12) & 63];
+    out += rest == 2 ? kBase64Alphabet[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+int Base64Value(char c) {
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+') return 62;
+  if (c == '/') return 63;
+  return -1;
+}
+
+// Strict decoder: length a multiple of 4, '=' padding only at the end. False on bad input.
+bool Base64Decode(const std::string& text, std::string* bytes) {
+  bytes->clear();
+  if (text.size() % 4 != 0) return false;
+  bytes->reserve(text.size() / 4 * 3);
+  for (size_t i = 0; i < text.size(); i += 4) {
+    const bool last = i + 4 == text.size();
+    int pad = 0;
+    uint32_t v = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      const char c = text[i + k];
+      int d = 0;
+      if (c == '=' && last && k >= 2) {
+        ++pad;
+      } else {
+        if (pad > 0) return false;  // data after padding
+        d = Base64Value(c);
+        if (d < 0) return false;
+      }
+      v = (v << 6) | static_cast<uint32_t>(d);
+    }
+    bytes->push_back(static_cast<char>((v >> 16) & 0xff));
+    if (pad < 2) bytes->push_back(static_cast<char>((v >> 8) & 0xff));
+    if (pad < 1) bytes->push_back(static_cast<char>(v & 0xff));
+  }
+  return true;
+}
+
+void AppendDouble(double value, std::string* bytes) {
+  uint64_t bits = 0;
+  std::memcpy(&bits, &value, sizeof(bits));
+  for (int b = 0; b < 8; ++b) bytes->push_back(static_cast<char>((bits >> (8 * b)) & 0xff));
+}
+
+double ReadDouble(const std::string& bytes, size_t offset) {
+  uint64_t bits = 0;
+  for (int b = 0; b < 8; ++b) {
+    bits |= uint64_t{static_cast<unsigned char>(bytes[offset + static_cast<size_t>(b)])} << (8 * b);
+  }
+  double value = 0.0;
+  std::memcpy(&value, &bits, sizeof(value));
+  return value;
+}
+
+Json EncodeMatrix(const Matrix& a, bool upper_triangular) {
+  std::string bytes;
+  bytes.reserve(static_cast<size_t>(a.size()) * 8);
+  for (Eigen::Index j = 0; j < a.cols(); ++j) {
+    const Eigen::Index rows = upper_triangular ? std::min<Eigen::Index>(j + 1, a.rows()) : a.rows();
+    for (Eigen::Index i = 0; i < rows; ++i) AppendDouble(a(i, j), &bytes);
+  }
+  Json out;
+  out["rows"] = a.rows();
+  out["cols"] = a.cols();
+  out["layout"] = upper_triangular ? kUpperTriangular : kColumnMajor;
+  out["encoding"] = kEncoding;
+  out["data"] = Base64Encode(bytes);
+  return out;
+}
+
+Json NumberArray(const Vector& v) {
+  Json out = Json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v[i]);
+  return out;
+}
+
+std::string Crc32Text(const std::string& text) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  // zlib takes the length as uInt: feed large texts in pieces.
+  constexpr size_t kPiece = size_t{1} << 30;
+  for (size_t begin = 0; begin < text.size(); begin += kPiece) {
+    const size_t n = std::min(kPiece, text.size() - begin);
+    crc = crc32(crc, reinterpret_cast<const Bytef*>(text.data() + begin), static_cast<uInt>(n));
+  }
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "crc32:%08lx", static_cast<unsigned long>(crc));
+  return buffer;
+}
+
+// The checksum covers the compact text of the object without its "checksum" field. nlohmann
+// writes numbers with the shortest text that reads back to the same value and keeps object
+// keys sorted, so parsing a file and dumping it again gives the same text.
+std::string Checksum(Json object) {
+  object.erase("checksum");
+  return Crc32Text(object.dump());
+}
+
+void RequireFiniteForSave(const std::string& what, const Eigen::Ref<const Matrix>& a) {
+  if (!a.allFinite()) {
+    throw std::invalid_argument("SaveModel: " + what + " holds a non-finite value");
+  }
+}
+
+Form ParseForm(const std::string& text, bool* ok) {
+  *ok = true;
+  if (text == ToString(Form::kAuto)) return Form::kAuto;
+  if (text == ToString(Form::kWeightSpace)) return Form::kWeightSpace;
+  if (text == ToString(Form::kFunctionSpace)) return Form::kFunctionSpace;
+  *ok = false;
+  return Form::kAuto;
+}
+
+// "pol+fri + coulomb@2" for messages.
+std::string Label(const ModelSpec& spec) {
+  return ToString(spec) + (spec.effects.empty() ? "" : " + " + ToString(spec.effects));
+}
+
+// ---- decoding with messages that name the file and the field --------------------------------
+
+class FieldReader {
+ public:
+  explicit FieldReader(std::string path) : path_(std::move(path)) {}
+
+  [[noreturn]] void Fail(const std::string& message) const {
+    throw DataError(path_, 0, 0, message);
+  }
+  [[noreturn]] void FailField(const std::string& field, const std::string& message) const {
+    Fail("field '" + field + "': " + message);
+  }
+
+  const Json& Get(const Json& object, const std::string& prefix, const char* key) const {
+    const std::string field = prefix.empty() ? key : prefix + "." + key;
+    if (!object.is_object()) FailField(prefix, "expected an object");
+    const auto it = object.find(key);
+    if (it == object.end()) Fail("missing field '" + field + "'");
+    return *it;
+  }
+
+  double Number(const Json& object, const std::string& prefix, const char* key) const {
+    const Json& v = Get(object, prefix, key);
+    if (!v.is_number()) FailField(Name(prefix, key), "expected a number, got " + Brief(v));
+    const double x = v.get<double>();
+    if (!std::isfinite(x)) FailField(Name(prefix, key), "expected a finite number");
+    return x;
+  }
+
+  long long Integer(const Json& object, const std::string& prefix, const char* key, long long lo,
+                    long long hi) const {
+    const Json& v = Get(object, prefix, key);
+    if (!v.is_number_integer()) {
+      FailField(Name(prefix, key), "expected an integer, got " + Brief(v));
+    }
+    const long long x = v.get<long long>();
+    if (x < lo || x > hi) {
+      FailField(Name(prefix, key), "expected a value in " + std::to_string(lo) + ".." +
+                                       std::to_string(hi) + ", got " + std::to_string(x));
+    }
+    return x;
+  }
+
+  bool Boolean(const Json& object, const std::string& prefix, const char* key) const {
+    const Json& v = Get(object, prefix, key);
+    if (!v.is_boolean()) FailField(Name(prefix, key), "expected true or false, got " + Brief(v));
+    return v.get<bool>();
+  }
+
+  std::string String(const Json& object, const std::string& prefix, const char* key) const {
+    const Json& v = Get(object, prefix, key);
+    if (!v.is_string()) FailField(Name(prefix, key), "expected a string, got " + Brief(v));
+    return v.get<std::string>();
+  }
+
+  Vector Numbers(const Json& object, const std::string& prefix, const char* key) const {
+    const Json& v = Get(object, prefix, key);
+    if (!v.is_array()) FailField(Name(prefix, key), "expected an array of numbers");
+    Vector out(static_cast<Eigen::Index>(v.size()));
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
+        FailField(Name(prefix, key), "entry " + std::to_string(i + 1) + " is not a finite number");
+      }
+      out[static_cast<Eigen::Index>(i)] = v[i].get<double>();
+    }
+    return out;
+  }
+
+  Matrix DecodedMatrix(const Json& object, const std::string& prefix, const char* key) const {
+    const std::string field = Name(prefix, key);
+    const Json& m = Get(object, prefix, key);
+    constexpr long long kMaxDim = 1LL << 26;
+    const auto rows = static_cast<Eigen::Index>(Integer(m, field, "rows", 0, kMaxDim));
+    const auto cols = static_cast<Eigen::Index>(Integer(m, field, "cols", 0, kMaxDim));
+    const std::string layout = String(m, field, "layout");
+    if (layout != kColumnMajor && layout != kUpperTriangular) {
+      FailField(field, "unknown layout '" + layout + "' (expected '" + kColumnMajor + "' or '" +
+                           kUpperTriangular + "')");
+    }
+    const bool upper = layout == kUpperTriangular;
+    if (upper && rows != cols) FailField(field, "an upper-triangular matrix must be square");
+    if (String(m, field, "encoding") != kEncoding) {
+      FailField(field, std::string("unknown encoding (expected '") + kEncoding + "')");
+    }
+    std::string bytes;
+    if (!Base64Decode(String(m, field, "data"), &bytes)) {
+      FailField(field, "the data are not valid base64");
+    }
+    const size_t count = upper ? static_cast<size_t>(rows) * static_cast<size_t>(rows + 1) / 2
+                               : static_cast<size_t>(rows) * static_cast<size_t>(cols);
+    if (bytes.size() != 8 * count) {
+      FailField(field, "expected " + std::to_string(count) + " doubles (" +
+                           std::to_string(8 * count) + " bytes), the data hold " +
+                           std::to_string(bytes.size()) + " bytes");
+    }
+    Matrix out = Matrix::Zero(rows, cols);
+    size_t offset = 0;
+    for (Eigen::Index j = 0; j < cols; ++j) {
+      const Eigen::Index n = upper ? j + 1 : rows;
+      for (Eigen::Index i = 0; i < n; ++i, offset += 8) out(i, j) = ReadDouble(bytes, offset);
+    }
+    if (!out.allFinite()) FailField(field, "holds a non-finite value");
+    return out;
+  }
+
+  Vector DecodedVector(const Json& object, const std::string& prefix, const char* key) const {
+    const Matrix m = DecodedMatrix(object, prefix, key);
+    if (m.cols() != 1) FailField(Name(prefix, key), "expected a single column");
+    return m.col(0);
+  }
+
+  static std::string Name(const std::string& prefix, const char* key) {
+    return prefix.empty() ? std::string(key) : prefix + "." + key;
+  }
+
+ private:
+  static std::string Brief(const Json& v) {
+    std::string text = v.dump();
+    if (text.size() > 40) text = text.substr(0, 37) + "...";
+    return text;
+  }
+
+  std::string path_;
+};
+
+// 1-based line and column of byte `offset` (0-based) of `text`; columns count UTF-8 code points.
+std::pair<int, int> LineAndColumn(const std::string& text, size_t offset) {
+  offset = std::min(offset, text.size());
+  int line = 1;
+  int column = 1;
+  for (size_t i = 0; i < offset; ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c == '\n') {
+      ++line;
+      column = 1;
+    } else if ((c & 0xC0) != 0x80) {
+      ++column;
+    }
+  }
+  return {line, column};
+}
+
+Json ParseJson(const std::string& text, const std::string& path) {
+  if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
+    throw DataError(path, 0, 0, "not a structgp model file: the file is empty");
+  }
+  try {
+    return Json::parse(text);
+  } catch (const Json::parse_error& e) {
+    // e.byte is the 1-based index of the byte where parsing stopped.
+    const size_t offset = e.byte > 0 ? e.byte - 1 : 0;
+    const auto [line, column] = LineAndColumn(text, offset);
+    std::string reason = e.what();
+    const size_t syntax = reason.find("syntax error");
+    if (syntax != std::string::npos) reason = reason.substr(syntax);
+    // The parser quotes the token it last read, which can be a whole base64 payload.
+    constexpr size_t kMaxQuoted = 24;
+    const size_t last = reason.find("; last read: '");
+    if (last != std::string::npos && reason.size() > last + 14 + kMaxQuoted + 1) {
+      reason = reason.substr(0, last + 14 + kMaxQuoted) + "...'";
+    }
+    const bool at_end = offset + 1 >= text.size();
+    throw DataError(path, line, column,
+                    std::string(at_end ? "truncated model file" : "malformed model file") +
+                        " (not valid JSON): " + reason);
+  }
+}
+
+}  // namespace
+
+// ---- saving ---------------------------------------------------------------------------------
+
+std::string ModelFileText(const RobotModel& model) {
+  if (!model.fitted()) throw std::invalid_argument("SaveModel: the model is not fitted");
+  const GaussianProcess& gp = model.gp();
+  const Hyperparameters& h = model.hyperparameters();
+  RequireFiniteForSave("hyperparameters.shape", h.shape);
+  RequireFiniteForSave("hyperparameters.log_block_scale", h.log_block_scale);
+  RequireFiniteForSave("hyperparameters.log_output_scale", h.log_output_scale);
+  if (!std::isfinite(h.log_noise_std)) {
+    throw std::invalid_argument("SaveModel: hyperparameters.log_noise_std is not finite");
+  }
+
+  Json doc;
+  doc["format"] = kModelFileFormat;
+  doc["version"] = kModelFileVersion;
+  doc["model"] = ToString(model.spec());
+  doc["effects"] = ToString(model.spec().effects);
+  Json effects = Json::array();
+  for (const EffectSpec& e : model.spec().effects) {
+    Json item;
+    item["name"] = e.name;
+    item["joints"] = e.joints;
+    Json params = Json::object();
+    for (const auto& [key, value] : e.params) params[key] = value;
+    item["params"] = params;
+    effects.push_back(item);
+  }
+  doc["effect_list"] = effects;
+  Json options;
+  options["form"] = ToString(model.options().form);
+  options["friction_width"] = model.options().friction_width;
+  options["broad_prior_std"] = model.options().broad_prior_std;
+  doc["options"] = options;
+  doc["num_joints"] = model.num_joints();
+  doc["uses_time"] = model.uses_time();
+  doc["input_dim"] = model.input_dim();
+  doc["num_features"] = model.feature_map() ? model.feature_map()->dim() : 0;
+  doc["form"] = ToString(gp.form());
+
+  Json hyper;
+  hyper["shape"] = NumberArray(h.shape);
+  hyper["log_block_scale"] = NumberArray(h.log_block_scale);
+  hyper["log_noise_std"] = h.log_noise_std;
+  hyper["log_output_scale"] = NumberArray(h.log_output_scale);
+  const Vector kernel_parameters =
+      model.kernel() != nullptr ? model.kernel()->parameters() : Vector();
+  RequireFiniteForSave("kernel parameters", kernel_parameters);
+  hyper["kernel_parameters"] = NumberArray(kernel_parameters);
+  doc["hyperparameters"] = hyper;
+
+  const double lml = gp.LogMarginalLikelihood();
+  if (std::isfinite(lml)) doc["log_marginal_likelihood"] = lml;
+
+  if (const WeightSpaceGP* ws = gp.weight_space()) {
+    const WeightSpaceGPState s = ws->State();
+    RequireFiniteForSave("weight-space state", s.covariance_factor);
+    RequireFiniteForSave("weight-space state", s.weights);
+    Json w;
+    w["prior_variance"] = EncodeMatrix(s.prior_variance, false);
+    w["noise_variance"] = s.noise_variance;
+    w["output_scales"] = EncodeMatrix(s.output_scales, false);
+    w["covariance_factor"] = EncodeMatrix(s.covariance_factor, true);
+    w["weights"] = EncodeMatrix(s.weights, false);
+    w["y_squared"] = EncodeMatrix(s.y_squared, false);
+    w["weight_sum"] = s.weight_sum;
+    w["log_weight_sum"] = s.log_weight_sum;
+    w["log_prior_broadening"] = s.log_prior_broadening;
+    w["sample_count"] = s.sample_count;
+    w["num_samples"] = s.num_samples;
+    doc["num_samples"] = s.num_samples;
+    doc["weight_space"] = w;
+  } else {
+    const KernelGP& fs = *gp.function_space();
+    const Matrix inputs = fs.inputs();
+    const Matrix targets = fs.targets();
+    RequireFiniteForSave("stored inputs", inputs);
+    RequireFiniteForSave("stored targets", targets);
+    Json f;
+    f["inputs"] = EncodeMatrix(inputs, false);
+    f["targets"] = EncodeMatrix(targets, false);
+    doc["num_samples"] = fs.size();
+    doc["function_space"] = f;
+  }
+  doc["checksum"] = Checksum(doc);
+  return doc.dump(2) + "\n";
+}
+
+void SaveModel(const std::string& path, const RobotModel& model) {
+  WriteTextAtomically(path, ModelFileText(model));
+}
+
+// ---- loading --------------------------------------------------------------------------------
+
+RobotModel ParseModelFile(const std::string& text, const std::string& path) {
+  const FieldReader r(path);
+  const Json doc = ParseJson(text, path);
+  if (!doc.is_object()) {
+    r.Fail("not a structgp model file (expected a JSON object with \"format\": \"" +
+           std::string(kModelFileFormat) + "\")");
+  }
+  const auto format = doc.find("format");
+  if (format == doc.end()) {
+    r.Fail("not a structgp model file (no \"format\" field; expected \"format\": \"" +
+           std::string(kModelFileFormat) + "\")");
+  }
+  if (!format->is_string() || format->get<std::string>() != kModelFileFormat) {
+    r.Fail("not a structgp model file (\"format\" is " + format->dump() + ", expected \"" +
+           kModelFileFormat + "\")");
+  }
+  const auto version = doc.find("version");
+  if (version == doc.end() || !version->is_number_integer()) {
+    r.Fail("model file without an integer \"version\" field");
+  }
+  if (version->get<long long>() != kModelFileVersion) {
+    const long long v = version->get<long long>();
+    r.Fail("unsupported model file version " + std::to_string(v) + ": this build reads version " +
+           std::to_string(kModelFileVersion) +
+           (v > kModelFileVersion ? " (the file was written by a newer structgp)" : ""));
+  }
+  const auto checksum = doc.find("checksum");
+  if (checksum == doc.end() || !checksum->is_string()) {
+    r.Fail("model file without a \"checksum\" field");
+  }
+  const std::string computed = Checksum(doc);
+  if (checksum->get<std::string>() != computed) {
+    r.Fail("checksum mismatch: the file says " + checksum->get<std::string>() +
+           ", its contents give " + computed + "; the file is corrupted or was edited");
+  }
+
+  // The contents are as written by SaveModel (or by a careful hand); check them all the same.
+  ModelSpec spec;
+  try {
+    spec = ParseModelSpec(r.String(doc, "", "model"));
+  } catch (const std::invalid_argument& e) {
+    r.FailField("model", e.what());
+  }
+  const Json& effects = r.Get(doc, "", "effect_list");
+  if (!effects.is_array()) r.FailField("effect_list", "expected an array");
+  for (size_t i = 0; i < effects.size(); ++i) {
+    const std::string prefix = "effect_list[" + std::to_string(i) + "]";
+    EffectSpec e;
+    e.name = r.String(effects[i], prefix, "name");
+    const Json& joints = r.Get(effects[i], prefix, "joints");
+    if (!joints.is_array()) r.FailField(prefix + ".joints", "expected an array of joints");
+    for (const Json& j : joints) {
+      if (!j.is_number_integer()) r.FailField(prefix + ".joints", "expected integers");
+      e.joints.push_back(j.get<int>());
+    }
+    const Json& params = r.Get(effects[i], prefix, "params");
+    if (!params.is_object()) r.FailField(prefix + ".params", "expected an object");
+    for (const auto& [key, value] : params.items())
+      e.params[key] = r.Number(params, prefix + ".params", key.c_str());
+    spec.effects.push_back(std::move(e));
+  }
+
+  RobotModelOptions options;
+  const Json& o = r.Get(doc, "", "options");
+  bool form_ok = false;
+  options.form = ParseForm(r.String(o, "options", "form"), &form_ok);
+  if (!form_ok) r.FailField("options.form", "expected 'auto', 'weight_space' or 'function_space'");
+  options.friction_width = r.Number(o, "options", "friction_width");
+  options.broad_prior_std = r.Number(o, "options", "broad_prior_std");
+  const int num_joints = static_cast<int>(r.Integer(doc, "", "num_joints", 1, 1000));
+  const bool uses_time = r.Boolean(doc, "", "uses_time");
+  const int input_dim = static_cast<int>(r.Integer(doc, "", "input_dim", 1, 1 << 20));
+  const long long num_features = r.Integer(doc, "", "num_features", 0, 1LL << 40);
+  bool active_ok = false;
+  const Form active = ParseForm(r.String(doc, "", "form"), &active_ok);
+  if (!active_ok || active == Form::kAuto) {
+    r.FailField("form", "expected 'weight_space' or 'function_space'");
+  }
+
+  Hyperparameters hyper;
+  const Json& hj = r.Get(doc, "", "hyperparameters");
+  hyper.shape = r.Numbers(hj, "hyperparameters", "shape");
+  hyper.log_block_scale = r.Numbers(hj, "hyperparameters", "log_block_scale");
+  hyper.log_noise_std = r.Number(hj, "hyperparameters", "log_noise_std");
+  hyper.log_output_scale = r.Numbers(hj, "hyperparameters", "log_output_scale");
+  const Vector kernel_parameters = r.Numbers(hj, "hyperparameters", "kernel_parameters");
+
+  // Everything below builds library objects, whose checks throw std::invalid_argument.
+  try {
+    RobotModel probe(spec, num_joints, options);
+    if (probe.uses_time() != uses_time || probe.input_dim() != input_dim) {
+      r.Fail("inconsistent model file: model '" + Label(spec) + "' has " +
+             std::to_string(probe.input_dim()) + " inputs, the file says " +
+             std::to_string(input_dim));
+    }
+    const long long map_dim = probe.feature_map() ? probe.feature_map()->dim() : 0;
+    if (map_dim != num_features) {
+      r.Fail("inconsistent model file: model '" + Label(spec) + "' has " + std::to_string(map_dim) +
+             " features, the file says " + std::to_string(num_features));
+    }
+
+    if (active == Form::kWeightSpace) {
+      if (!probe.feature_map()) r.Fail("inconsistent model file: a kernel model in weight space");
+      const std::string p = "weight_space";
+      const Json& w = r.Get(doc, "", "weight_space");
+      WeightSpaceGPState state;
+      state.prior_variance = r.DecodedVector(w, p, "prior_variance");
+      state.noise_variance = r.Number(w, p, "noise_variance");
+      state.output_scales = r.DecodedVector(w, p, "output_scales");
+      state.covariance_factor = r.DecodedMatrix(w, p, "covariance_factor");
+      state.weights = r.DecodedMatrix(w, p, "weights");
+      state.y_squared = r.DecodedVector(w, p, "y_squared");
+      state.weight_sum = r.Number(w, p, "weight_sum");
+      state.log_weight_sum = r.Number(w, p, "log_weight_sum");
+      state.log_prior_broadening = r.Number(w, p, "log_prior_broadening");
+      state.sample_count = r.Number(w, p, "sample_count");
+      state.num_samples =
+          static_cast<long>(r.Integer(w, p, "num_samples", -(1LL << 62), 1LL << 62));
+      WeightSpaceGP restored = WeightSpaceGP::FromState(state);
+      if (restored.num_features() != num_features || restored.num_outputs() != num_joints) {
+        r.Fail("inconsistent model file: the weight-space state has " +
+               std::to_string(restored.num_features()) + " features and " +
+               std::to_string(restored.num_outputs()) + " outputs, the model " +
+               std::to_string(num_features) + " and " + std::to_string(num_joints));
+      }
+      // Fit on D copies of the zero state: enough rows for the weight-space form whatever
+      // options.form asks (kAuto picks it when D <= m), and O(D^3) once. This sets the
+      // hyper-parameters of the model and its GaussianProcess; the state then replaces the
+      // posterior.
+      const Eigen::Index D = probe.feature_map()->dim();
+      const Matrix X = Matrix::Zero(D, input_dim);
+      const Matrix Y = Matrix::Zero(D, num_joints);
+      if (probe.Fit(X, Y, hyper) != Status::kOk || probe.gp().weight_space() == nullptr) {
+        r.Fail("the stored hyper-parameters do not give a usable weight-space model");
+      }
+      // The WeightSpaceGP is owned, non-const, by the model's GaussianProcess, which offers
+      // const access only; mutable_gp() grants the right to change it.
+      auto* target = const_cast<WeightSpaceGP*>(probe.mutable_gp().weight_space());
+      *target = std::move(restored);
+      return probe;
+    }
+
+    const std::string p = "function_space";
+    const Json& f = r.Get(doc, "", "function_space");
+    const Matrix X = r.DecodedMatrix(f, p, "inputs");
+    const Matrix Y = r.DecodedMatrix(f, p, "targets");
+    if (X.cols() != input_dim || Y.cols() != num_joints || X.rows() != Y.rows()) {
+      r.Fail("inconsistent model file: stored inputs are " + std::to_string(X.rows()) + " x " +
+             std::to_string(X.cols()) + " and targets " + std::to_string(Y.rows()) + " x " +
+             std::to_string(Y.cols()) + ", the model needs " + std::to_string(input_dim) +
+             " input and " + std::to_string(num_joints) + " target columns");
+    }
+    // A model fitted with Form::kAuto in function space that later grew past D points by
+    // online additions would be refitted in weight space: keep the function space.
+    RobotModelOptions load_options = options;
+    if (probe.feature_map() && load_options.form == Form::kAuto &&
+        probe.feature_map()->dim() <= X.rows()) {
+      load_options.form = Form::kFunctionSpace;
+    }
+    RobotModel model(spec, num_joints, load_options);
+    if (model.kernel() != nullptr) {
+      if (kernel_parameters.size() != model.kernel()->num_parameters()) {
+        r.FailField("hyperparameters.kernel_parameters",
+                    "expected " + std::to_string(model.kernel()->num_parameters()) +
+                        " values, got " + std::to_string(kernel_parameters.size()));
+      }
+      // RobotModel fits rbf bases with its kernel's current parameters; the kernel is owned,
+      // non-const, by the model.
+      const_cast<Kernel*>(model.kernel())->set_parameters(kernel_parameters);
+    }
+    const Status status = model.Fit(X, Y, hyper);
+    if (status != Status::kOk) {
+      r.Fail(std::string("the stored points cannot be refitted: ") + ToString(status));
+    }
+    return model;
+  } catch (const std::invalid_argument& e) {
+    r.Fail(std::string("inconsistent model file: ") + e.what());
+  }
+}
+
+RobotModel LoadModel(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw DataError(path, 0, 0, std::string("cannot open for reading: ") + std::strerror(errno));
+  }
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (in.bad()) {
+    throw DataError(path, 0, 0, std::string("cannot read: ") + std::strerror(errno));
+  }
+  return ParseModelFile(buffer.str(), path);
+}
+
+}  // namespace structgp

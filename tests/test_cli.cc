@@ -1,0 +1,419 @@
+// The structgp program, run as users run it: the demo finds the hidden friction and cuts the
+// error on its joint; fit, predict, evaluate, diagnose and compare work end to end on the demo's
+// data; every bad input gives exit code 2, a message naming the flag or the file (with line and
+// column for data errors), and leaves an existing output file byte for byte as it was.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#ifndef STRUCTGP_CLI_PATH
+#error "STRUCTGP_CLI_PATH must name the structgp program"
+#endif
+
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("structgp_test_cli_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  std::string File(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+}
+
+std::string Quote(const std::string& arg) {
+  std::string out = "'";
+  for (char c : arg) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+struct Result {
+  int code = -1;
+  std::string out;
+  std::string err;
+};
+
+// Runs the program with the arguments; its stdout and stderr are captured in files of `dir`.
+Result RunCli(const TempDir& dir, const std::vector<std::string>& args) {
+  std::string command = Quote(STRUCTGP_CLI_PATH);
+  for (const auto& a : args) command += " " + Quote(a);
+  const std::string out = dir.File("stdout.txt");
+  const std::string err = dir.File("stderr.txt");
+  command += " > " + Quote(out) + " 2> " + Quote(err);
+  const int status = std::system(command.c_str());
+  Result r;
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = ReadFile(out);
+  r.err = ReadFile(err);
+  return r;
+}
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+size_t CountLines(const std::string& text) {
+  return static_cast<size_t>(std::count(text.begin(), text.end(), '\n'));
+}
+
+TEST(Cli, DemoCutsTheErrorOfTheJointWithHiddenFriction) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  const Result r = RunCli(dir, {"demo", "--out", demo, "--quiet"});
+  std::printf("%s", r.out.c_str());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "joint 2: missing Coulomb friction")) << r.out;
+  const Json comparison = Json::parse(ReadFile(demo + "/comparison.json"));
+  const Json& joint2 = comparison["joints"][1];
+  EXPECT_EQ(joint2["joint"], 2);
+  EXPECT_LE(joint2["relative_change"].get<double>(), -0.5) << comparison.dump(2);
+  const Json findings = Json::parse(ReadFile(demo + "/findings.json"));
+  ASSERT_FALSE(findings["suggestions"].empty());
+  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
+  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+  for (const char* name :
+       {"train.csv", "test.csv", "model_before.json", "model_after.json", "report.html"}) {
+    EXPECT_TRUE(fs::exists(demo + "/" + name)) << name;
+  }
+  EXPECT_TRUE(Contains(ReadFile(demo + "/report.html"), "<html")) << "report.html";
+}
+
+TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);
+  const std::string train = demo + "/train.csv";
+  const std::string test = demo + "/test.csv";
+
+  // fit: the pol model with the missing friction added, by maximum likelihood.
+  const std::string model = dir.File("pol_coulomb.json");
+  Result r = RunCli(
+      dir, {"fit", "--data", train, "--model", "pol", "--effects", "coulomb@2", "--out", model});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "D = 134")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "coulomb@2")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "log marginal likelihood")) << r.out;
+  EXPECT_TRUE(Contains(r.err, "structgp fit: ")) << "progress lines on stderr";
+  EXPECT_TRUE(fs::exists(model));
+
+  // The other hyper-parameter methods.
+  for (const char* method : {"cv", "fixed"}) {
+    r = RunCli(dir, {"fit", "--data", train, "--model", "pol+fri", "--hyper", method, "--out",
+                     dir.File(std::string("pol_fri_") + method + ".json"), "-q"});
+    EXPECT_EQ(r.code, 0) << method << ": " << r.err;
+  }
+
+  // predict, with components.
+  const std::string pred = dir.File("pred.csv");
+  r = RunCli(dir, {"predict", "--model", model, "--data", test, "--out", pred, "--components"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string csv = ReadFile(pred);
+  const std::string header = csv.substr(0, csv.find('\n'));
+  EXPECT_EQ(header.rfind("t,tau1_mean,tau1_std,tau2_mean,tau2_std,tau1_inertial", 0), 0u) << header;
+  EXPECT_TRUE(Contains(header, "tau2_coulomb@2")) << header;
+  EXPECT_EQ(CountLines(csv), 1001u);
+
+  // evaluate, with JSON.
+  const std::string errors = dir.File("errors.json");
+  r = RunCli(dir, {"evaluate", "--model", model, "--data", test, "--json", errors});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Json e = Json::parse(ReadFile(errors));
+  EXPECT_EQ(e["num_samples"], 1000);
+  EXPECT_LT(e["joints"][1]["rms"].get<double>(), 0.1);
+  EXPECT_TRUE(Contains(r.out, "all")) << r.out;
+
+  // diagnose the model without friction: it names the friction, and writes the report.
+  const std::string findings = dir.File("findings.json");
+  const std::string report = dir.File("report.html");
+  r = RunCli(dir, {"diagnose", "--model", demo + "/model_before.json", "--data", train, "--json",
+                   findings, "--report", report});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "joint 2: missing Coulomb friction (evidence +")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "add with --effects coulomb@2")) << r.out;
+  EXPECT_EQ(Json::parse(ReadFile(findings))["suggestions"][0]["effect"], "coulomb");
+  EXPECT_TRUE(Contains(ReadFile(report), "<html"));
+  // The model with the friction: nothing left to add.
+  r = RunCli(dir, {"diagnose", "--model", model, "--data", train, "--json", findings});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "no missing effect found")) << r.out;
+
+  // compare before and after.
+  const std::string compared = dir.File("compare.json");
+  r = RunCli(dir, {"compare", "--model", demo + "/model_before.json", "--model", model, "--data",
+                   test, "--json", compared, "--report", dir.File("compare.html")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Json c = Json::parse(ReadFile(compared));
+  EXPECT_LE(c["models"][1]["joints"][1]["relative_rms_change"].get<double>(), -0.5);
+  EXPECT_TRUE(fs::exists(dir.File("compare.html")));
+
+  // A kernel model (rbf, function space) on a short log: fit and predict work, the
+  // weight-space-only subcommands say why they cannot run.
+  std::istringstream lines(ReadFile(train));
+  std::string line, small;
+  for (int i = 0; i < 301 && std::getline(lines, line); ++i) small += line + "\n";
+  WriteFile(dir.File("small.csv"), small);
+  const std::string rbf = dir.File("rbf.json");
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "rbf", "--ml-max-rows", "150",
+                   "--out", rbf, "-q"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "kernel model")) << r.out;
+  r = RunCli(dir, {"predict", "--model", rbf, "--data", test, "--out", dir.File("rbf_pred.csv")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  r = RunCli(
+      dir, {"predict", "--model", rbf, "--data", test, "--out", dir.File("x.csv"), "--components"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Contains(r.err, "--components")) << r.err;
+  r = RunCli(dir, {"diagnose", "--model", rbf, "--data", test, "--json", dir.File("x.json")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Contains(r.err, "diagnose needs a pol or motor model")) << r.err;
+}
+
+TEST(Cli, EverySubcommandHasHelp) {
+  TempDir dir;
+  for (const char* sub : {"fit", "predict", "evaluate", "diagnose", "compare", "demo"}) {
+    const Result r = RunCli(dir, {sub, "--help"});
+    EXPECT_EQ(r.code, 0) << sub;
+    EXPECT_TRUE(Contains(r.out, "Example:")) << sub << "\n" << r.out;
+  }
+  const Result r = RunCli(dir, {"--help"});
+  EXPECT_EQ(r.code, 0);
+  EXPECT_TRUE(Contains(r.out, "demo")) << r.out;
+}
+
+// ---- bad input ----------------------------------------------------------------------------
+
+// A small 2-joint log with time: smooth motion, torques of a pendulum-like arm with friction.
+std::string GoodCsv(int rows, int joints = 2, bool with_time = true) {
+  std::ostringstream os;
+  os.precision(17);
+  if (with_time) os << "t,";
+  for (const char* block : {"q", "qd", "qdd", "tau"}) {
+    for (int j = 1; j <= joints; ++j)
+      os << block << j << (block[1] == 'a' && j == joints ? "" : ",");
+  }
+  os << "\n";
+  for (int i = 0; i < rows; ++i) {
+    const double t = 0.01 * i;
+    if (with_time) os << t << ",";
+    std::vector<double> q(joints), qd(joints), qdd(joints), tau(joints);
+    for (int j = 0; j < joints; ++j) {
+      const double w = 0.8 + 0.3 * j;
+      q[j] = std::sin(w * t + j);
+      qd[j] = w * std::cos(w * t + j);
+      qdd[j] = -w * w * std::sin(w * t + j);
+      tau[j] = 2.0 * qdd[j] + 9.81 * std::cos(q[j]) + 0.3 * std::tanh(qd[j] / 0.01);
+    }
+    for (const auto* v : {&q, &qd, &qdd, &tau}) {
+      for (int j = 0; j < joints; ++j) os << (*v)[j] << (v == &tau && j == joints - 1 ? "" : ",");
+    }
+    os << "\n";
+  }
+  return os.str();
+}
+
+struct BadCase {
+  std::string name;
+  std::vector<std::string> args;      // {dir} in an argument is replaced by the directory
+  std::vector<std::string> expected;  // parts of the message on stderr
+  std::vector<std::string> outputs;   // existing files that must stay as they were
+};
+
+TEST(Cli, BadInputGivesExitCode2AClearMessageAndNoOutput) {
+  TempDir dir;
+  const std::string d = dir.File("");
+  WriteFile(dir.File("good.csv"), GoodCsv(300));
+  WriteFile(dir.File("three.csv"), GoodCsv(50, 3));
+  WriteFile(dir.File("notime.csv"), GoodCsv(300, 2, false));
+  // Header without tau2.
+  WriteFile(dir.File("nocol.csv"), "t,q1,q2,qd1,qd2,qdd1,qdd2,tau1\n0,0,0,0,0,0,0,0\n");
+  // A word in the second cell of line 3 and a NaN in the second cell of line 4; the column
+  // of that cell follows from the length of the first.
+  std::vector<std::string> rows;
+  std::istringstream in(GoodCsv(5));
+  for (std::string line; std::getline(in, line);) rows.push_back(line);
+  auto with_cell = [&rows](int line, const std::string& cell, std::string* where) {
+    std::string out;
+    for (size_t i = 0; i < rows.size(); ++i) {
+      std::string row = rows[i];
+      if (static_cast<int>(i) + 1 == line) {
+        const size_t first = row.find(',');
+        row = row.substr(0, first + 1) + cell + row.substr(row.find(',', first + 1));
+        *where = std::to_string(line) + ":" + std::to_string(first + 2) + ":";
+      }
+      out += row + "\n";
+    }
+    return out;
+  };
+  std::string text_at, nan_at;
+  WriteFile(dir.File("text.csv"), with_cell(3, "abc", &text_at));
+  WriteFile(dir.File("nan.csv"), with_cell(4, "nan", &nan_at));
+  // A valid model, and a corrupted copy of it.
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", dir.File("good.csv"), "--model", "pol", "--hyper",
+                         "fixed", "--out", dir.File("model.json"), "-q"})
+                .code,
+            0);
+  std::string corrupt = ReadFile(dir.File("model.json"));
+  corrupt[corrupt.find("\"data\": \"") + 20] ^= 1;
+  WriteFile(dir.File("corrupt.json"), corrupt);
+  fs::create_directories(dir.File("demo_out"));
+
+  const std::string good = dir.File("good.csv");
+  const std::string model = dir.File("model.json");
+  const std::string out = dir.File("existing.out");
+  const std::string out2 = dir.File("existing2.out");
+  const std::string demo_train = dir.File("demo_out/train.csv");
+  const std::vector<BadCase> cases = {
+      {"missing data file",
+       {"fit", "--data", d + "missing.csv", "--model", "pol", "--out", out},
+       {d + "missing.csv: cannot open for reading"},
+       {out}},
+      {"missing column",
+       {"fit", "--data", d + "nocol.csv", "--model", "pol", "--out", out},
+       {d + "nocol.csv:1:", "missing column tau2"},
+       {out}},
+      {"non-numeric cell",
+       {"fit", "--data", d + "text.csv", "--model", "pol", "--out", out},
+       {d + "text.csv:" + text_at, "abc"},
+       {out}},
+      {"NaN cell",
+       {"fit", "--data", d + "nan.csv", "--model", "pol", "--out", out},
+       {d + "nan.csv:" + nan_at},
+       {out}},
+      {"bad model spec",
+       {"fit", "--data", good, "--model", "polx", "--out", out},
+       {"--model: model 'polx'"},
+       {out}},
+      {"bad effect spec",
+       {"fit", "--data", good, "--model", "pol", "--effects", "frobnicate@1", "--out", out},
+       {"--effects: ", "frobnicate"},
+       {out}},
+      {"effect on a missing joint",
+       {"fit", "--data", good, "--model", "pol", "--effects", "coulomb@5", "--out", out},
+       {"--effects", "joint 5", "2 joints"},
+       {out}},
+      {"time effect without t",
+       {"fit", "--data", d + "notime.csv", "--model", "pol", "--effects", "drift@1", "--out", out},
+       {d + "notime.csv:1:", "no 't' column"},
+       {out}},
+      {"cv with a kernel model",
+       {"fit", "--data", good, "--model", "rbf", "--hyper", "cv", "--out", out},
+       {"--hyper cv"},
+       {out}},
+      {"unknown hyper method",
+       {"fit", "--data", good, "--model", "pol", "--hyper", "best", "--out", out},
+       {"--hyper"},
+       {out}},
+      {"unknown flag",
+       {"fit", "--data", good, "--model", "pol", "--out", out, "--colour"},
+       {"--colour"},
+       {out}},
+      {"missing required flag", {"fit", "--data", good, "--model", "pol"}, {"--out"}, {}},
+      {"output directory missing",
+       {"fit", "--data", good, "--model", "pol", "--out", d + "nodir/model.json"},
+       {"--out", "does not exist"},
+       {}},
+      {"wrong number of joints",
+       {"predict", "--model", model, "--data", d + "three.csv", "--out", out},
+       {d + "three.csv:1:", "expected 2 joints (model), file has 3"},
+       {out}},
+      {"corrupted model",
+       {"predict", "--model", d + "corrupt.json", "--data", good, "--out", out},
+       {d + "corrupt.json: checksum mismatch"},
+       {out}},
+      {"data file given as model",
+       {"predict", "--model", good, "--data", good, "--out", out},
+       {good + ":1:", "malformed model file"},
+       {out}},
+      {"missing model file",
+       {"evaluate", "--model", d + "none.json", "--data", good, "--json", out},
+       {d + "none.json: cannot open for reading"},
+       {out}},
+      {"evaluate non-numeric",
+       {"evaluate", "--model", model, "--data", d + "text.csv", "--json", out},
+       {d + "text.csv:" + text_at},
+       {out}},
+      {"diagnose NaN",
+       {"diagnose", "--model", model, "--data", d + "nan.csv", "--json", out, "--report", out2},
+       {d + "nan.csv:" + nan_at},
+       {out, out2}},
+      {"diagnose report directory missing",
+       {"diagnose", "--model", model, "--data", good, "--json", out, "--report",
+        d + "nodir/r.html"},
+       {"--report", "does not exist"},
+       {out}},
+      {"compare one model",
+       {"compare", "--model", model, "--data", good, "--json", out},
+       {"--model", "at least two"},
+       {out}},
+      {"compare wrong joints",
+       {"compare", "--model", model, "--model", model, "--data", d + "three.csv", "--json", out},
+       {d + "three.csv:1:", "expected 2 joints"},
+       {out}},
+      {"demo joint out of range",
+       {"demo", "--out", d + "demo_out", "--joint", "3"},
+       {"--joint", "2 joints"},
+       {demo_train}},
+      {"demo unknown effect",
+       {"demo", "--out", d + "demo_out", "--effect", "magic"},
+       {"--effect"},
+       {demo_train}},
+      {"demo joint not a number",
+       {"demo", "--out", d + "demo_out", "--joint", "two"},
+       {"--joint"},
+       {demo_train}},
+      {"no subcommand", {}, {"subcommand"}, {}},
+      {"unknown subcommand", {"frobnicate"}, {"frobnicate"}, {}},
+  };
+  for (const BadCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    for (const auto& path : c.outputs) WriteFile(path, "precious contents of " + path + "\n");
+    const Result r = RunCli(dir, c.args);
+    EXPECT_EQ(r.code, 2) << r.err;
+    for (const auto& part : c.expected) {
+      EXPECT_TRUE(Contains(r.err, part)) << "stderr: " << r.err << "\nexpected: " << part;
+    }
+    EXPECT_TRUE(r.out.empty() || !Contains(r.out, "wrote")) << r.out;
+    for (const auto& path : c.outputs) {
+      EXPECT_EQ(ReadFile(path), "precious contents of " + path + "\n") << path;
+    }
+  }
+}
+
+}  // namespace
