@@ -1,6 +1,7 @@
 // Kernels of the function-space model: one invariant battery run on every kernel (symmetric
 // positive semi-definite Gram matrix, parameter round trip, Clone, hyper-parameter gradient
-// against central differences, no allocation in Evaluate/Gradient), plus closed forms:
+// against central differences, no allocation in Evaluate/Gradient; a new kernel joins it with
+// one entry in AllKernels()), plus closed forms:
 // rbf by hand, rbfs against the rbf on the explicit (cos q, sin q, qd, qdd), the feature
 // kernel against sum_k Lambda_k phi_k(a) phi_k(b).
 
@@ -22,6 +23,7 @@
 #include "structgp/feature/random_feature_map.h"
 #include "structgp/hyper/hyperparameters.h"
 #include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
 
 namespace structgp {
@@ -84,6 +86,20 @@ std::vector<KernelCase> AllKernels() {
                      h.shape << 0.3;
                      h.log_block_scale << 0.2, -0.5, 0.4;
                      return std::unique_ptr<Kernel>(std::make_unique<FeatureKernel>(map, h));
+                   }});
+  cases.push_back({"pol_formula_2", [] {
+                     auto k = std::make_unique<PolFormulaKernel>(2);
+                     Vector theta(4);
+                     theta << -0.5, 0.3, -0.2, 0.1;
+                     k->set_parameters(theta);
+                     return std::unique_ptr<Kernel>(std::move(k));
+                   }});
+  cases.push_back({"pol_formula_5_gravity_free", [] {
+                     auto k = std::make_unique<PolFormulaKernel>(5, PolOptions{false});
+                     Vector theta(3);
+                     theta << 0.4, -0.3, 0.2;
+                     k->set_parameters(theta);
+                     return std::unique_ptr<Kernel>(std::move(k));
                    }});
   return cases;
 }

@@ -1,8 +1,8 @@
 // PolFormulaKernel, the O(N) kernel form of k_pol: equal, value and gradient, to the kernel of
 // the explicit map (FeatureKernel(PolFeatureMap)) for N = 1..4, with and without the gravity
 // block; its terms equal the blocks of the map; gradient against central differences up to
-// N = 7; symmetric PSD Gram matrix; no allocation; parameter handling; and the same marginal
-// likelihood and gradient in a KernelGP as the feature kernel.
+// N = 7; parameter handling; and the same marginal likelihood and gradient in a KernelGP as the
+// feature kernel. The generic invariants come from the kernel battery in test_kernels.cc.
 
 #include <cmath>
 #include <cstdint>
@@ -244,50 +244,8 @@ TEST(PolFormulaKernel, GradientMatchesCentralDifferences) {
   }
 }
 
-// Symmetric term by term; PSD up to n eps ||K|| (see test_kernels.cc), with half the states
-// near-duplicates of the other half.
-TEST(PolFormulaKernel, GramIsSymmetricPositiveSemiDefinite) {
-  auto rng = SeededRng(501);
-  for (int n : {2, 5}) {
-    PolFormulaKernel kernel(n);
-    Vector theta(4);
-    theta << -0.5, 0.3, -0.2, 0.1;
-    kernel.set_parameters(theta);
-    const int m = 40;
-    Matrix X(m, 3 * n);
-    for (int i = 0; i < m / 2; ++i) X.row(i) = RandomState(n, &rng).transpose();
-    std::normal_distribution<double> tiny(0.0, 1e-6);
-    for (int i = m / 2; i < m; ++i) {
-      X.row(i) = X.row(i - m / 2).unaryExpr([&](double v) { return v + tiny(rng); });
-    }
-    Matrix K;
-    kernel.Gram(X, X, &K);
-    for (int i = 0; i < m; ++i) {
-      for (int j = 0; j < m; ++j) ASSERT_EQ(K(i, j), K(j, i));
-    }
-    Eigen::SelfAdjointEigenSolver<Matrix> eig(K, Eigen::EigenvaluesOnly);
-    const double norm = eig.eigenvalues().cwiseAbs().maxCoeff();
-    EXPECT_GE(eig.eigenvalues().minCoeff(), -m * kEps * norm) << "N = " << n;
-  }
-}
-
-TEST(PolFormulaKernel, EvaluateAndGradientDoNotAllocate) {
-  auto rng = SeededRng(601);
-  PolFormulaKernel kernel(6);
-  const Vector a = RandomState(6, &rng);
-  const Vector b = RandomState(6, &rng);
-  Vector dk(4);
-  double sum = 0.0;
-  testing::AllocationCounter guard;
-  for (int i = 0; i < 10; ++i) {
-    sum += kernel.Evaluate(a, b);
-    kernel.Gradient(a, b, dk);
-    sum += dk.sum();
-    sum += kernel.EvaluateTerms(a, b).gravity;
-  }
-  EXPECT_EQ(guard.count(), 0u);
-  EXPECT_TRUE(std::isfinite(sum));
-}
+// The generic invariants (symmetric PSD Gram matrix with near-duplicates, no allocation in
+// Evaluate/Gradient, parameter round trip) come from the kernel battery in test_kernels.cc.
 
 TEST(PolFormulaKernel, ParametersNamesAndClone) {
   PolFormulaKernel kernel(3);
