@@ -3,16 +3,64 @@
 
 /// @file
 /// Umbrella header: the whole public API of the structgp library (not the simulator, which
-/// is the separate structgp_sim target with headers under structgp/sim/).
+/// is the separate structgp_sim target with headers under structgp/sim/). Including the one
+/// header a program needs is cheaper to compile; this one is for convenience.
 
+// Core: status codes, matrix types, input checks.
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/core/validate.h"
+
+// Feature maps: the structured kernels as explicit features, effects, sums, Nystrom.
 #include "structgp/feature/feature_map.h"
-#include "structgp/hyper/evidence.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/pol_feature_map.h"
+#include "structgp/feature/pol_kernel_formula.h"
+#include "structgp/feature/gravity_basis_feature_map.h"
+#include "structgp/feature/friction_feature_map.h"
+#include "structgp/feature/motor_feature_map.h"
+#include "structgp/feature/effect.h"
+#include "structgp/feature/effects.h"
+#include "structgp/feature/effect_feature_map.h"
+#include "structgp/feature/sum_feature_map.h"
+#include "structgp/feature/nystrom_feature_map.h"
+
+// Kernels for the function-space (kernel) form.
 #include "structgp/kernel/kernel.h"
+#include "structgp/kernel/rbf_kernel.h"
+#include "structgp/kernel/pol_kernel.h"
+#include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/sum_kernel.h"
+
+// Models: weight space (rank-one updates), kernel form, automatic choice, robot models from specs.
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
+#include "structgp/model/kernel_gp.h"
+#include "structgp/model/gaussian_process.h"
+#include "structgp/model/model_spec.h"
+#include "structgp/model/robot_model.h"
+
+// Hyper-parameters: type-II maximum likelihood (Ceres) and blocked cross-validation.
+#include "structgp/hyper/hyperparameters.h"
+#include "structgp/hyper/hyperparameter_layout.h"
+#include "structgp/hyper/evidence.h"
+#include "structgp/hyper/marginal_likelihood.h"
+#include "structgp/hyper/cross_validation.h"
+
+// Diagnosis: which physical effect the model is missing.
+#include "structgp/diagnose/diagnosis.h"
+
+// Online learning next to a control loop.
+#include "structgp/online/triple_buffer.h"
+#include "structgp/online/online_learner.h"
+
+// Files: robot data CSV, atomic writes, model files.
+#include "structgp/io/data_error.h"
+#include "structgp/io/csv.h"
+#include "structgp/io/robot_data.h"
+#include "structgp/io/atomic_file.h"
+#include "structgp/io/model_file.h"
+
+// The HTML diagnosis report.
+#include "structgp/report/report.h"
 
 #endif  // STRUCTGP_STRUCTGP_H_
