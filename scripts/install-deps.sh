@@ -15,6 +15,7 @@ packages=(
   chromium  # headless browser test of the HTML report (tests/test_report.cc)
   zlib1g-dev
   python3-sklearn  # bench/sklearn_compare.py (side by side with scikit-learn; not in ctest)
+  clang libclang-rt-14-dev  # libFuzzer targets in fuzz/ (scripts/run-fuzzers.sh)
 )
 
 missing=()

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets of fuzz/ with clang (ASan + UBSan) and runs each for a bounded
+# time from its seed corpus in fuzz/corpus/<target>/. New inputs go to a scratch corpus in the
+# build directory (the repository is not modified); a crash, a sanitizer report, a timeout or
+# an out-of-memory stops the run with a nonzero status and leaves the input in
+# <build>/artifacts/<target>/.
+#
+#   bash scripts/run-fuzzers.sh [SECONDS_PER_TARGET] [TARGET...]
+#
+# Environment: STRUCTGP_FUZZ_BUILD_DIR (default build-fuzz).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+seconds=${1:-45}
+shift || true
+targets=("$@")
+if [ ${#targets[@]} -eq 0 ]; then
+  targets=(fuzz_csv fuzz_model_spec fuzz_model_file)
+fi
+build=${STRUCTGP_FUZZ_BUILD_DIR:-build-fuzz}
+jobs=$(nproc 2>/dev/null || echo 2)
+
+CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DSTRUCTGP_BUILD_FUZZERS=ON -DBUILD_TESTING=OFF -DSTRUCTGP_BUILD_BENCHMARKS=OFF \
+  -DSTRUCTGP_BUILD_EXAMPLES=OFF > /dev/null
+cmake --build "$build" -j "$jobs" --target "${targets[@]}"
+
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+for target in "${targets[@]}"; do
+  corpus="$build/corpus/$target"
+  artifacts="$build/artifacts/$target/"
+  mkdir -p "$corpus" "$artifacts"
+  echo "run-fuzzers: $target for ${seconds} s"
+  "$build/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="$artifacts" \
+    "$corpus" "fuzz/corpus/$target" 2> "$build/$target.log" || {
+      tail -n 60 "$build/$target.log"
+      echo "run-fuzzers: $target FAILED; the input is in $artifacts" >&2
+      exit 1
+    }
+  grep -E "^stat::number_of_executed_units|^#[0-9]+.*DONE" "$build/$target.log" | tail -n 2 || true
+done
+echo "run-fuzzers: all targets ran without a finding"
