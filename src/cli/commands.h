@@ -26,6 +26,7 @@ std::unique_ptr<Command> MakeEvaluateCommand();
 std::unique_ptr<Command> MakeDiagnoseCommand();
 std::unique_ptr<Command> MakeCompareCommand();
 std::unique_ptr<Command> MakeDemoCommand();
+std::unique_ptr<Command> MakePrepareCommand();
 
 }  // namespace cli
 }  // namespace structgp

@@ -1,4 +1,4 @@
-// The structgp program: fit, predict, evaluate, diagnose, compare and demo.
+// The structgp program: fit, predict, evaluate, diagnose, compare, prepare and demo.
 //
 // Exit codes: 0 success; 2 a mistake in the command line or an input file (the message names
 // the flag, or the file with line and column); 1 a numerical failure. Outputs are written only
@@ -42,6 +42,7 @@ int Main(int argc, char** argv) {
   commands.push_back(MakeEvaluateCommand());
   commands.push_back(MakeDiagnoseCommand());
   commands.push_back(MakeCompareCommand());
+  commands.push_back(MakePrepareCommand());
   std::vector<CLI::App*> subcommands;
   subcommands.reserve(commands.size());
   for (auto& c : commands) subcommands.push_back(c->Register(&app));
