@@ -22,6 +22,9 @@ double Rms(const Matrix& a, const Matrix& b) { return std::sqrt((a - b).squaredN
 struct Outcome {
   Diagnosis diagnosis;
   double rms_before = 0, rms_after = 0;  // test RMS of the joint with the effect
+  // With exactly one suggestion on the test log: the residual RMS of its joint on that log
+  // after an independent refit there of the base model plus the effect (-1 otherwise).
+  double refit_residual_rms = -1;
 };
 
 // Fits `spec` on the slow log (noise and scales by evidence), diagnoses on the fast log.
@@ -82,6 +85,12 @@ Outcome RunCase(HiddenEffect effect, int joint, double magnitude, bool whole_log
     const RobotModel better = FitModel(fixed, scenario.train);
     better.PredictRows(WithTime(scenario.test, better.uses_time()), &pred);
     out.rms_after = Rms(pred.col(joint - 1), scenario.test.Y.col(joint - 1));
+    if (!whole_log && out.diagnosis.suggestions.size() == 1) {
+      const int j = out.diagnosis.suggestions.front().joint - 1;
+      const RobotModel refit = FitModel(fixed, scenario.test);
+      refit.PredictRows(WithTime(scenario.test, refit.uses_time()), &pred);
+      out.refit_residual_rms = Rms(pred.col(j), scenario.test.Y.col(j));
+    }
   }
   std::printf("%s\n%s", scenario.description.c_str(), ToJson(out.diagnosis).c_str());
   std::printf("test RMS of joint %d: %.4f -> %.4f\n", joint, out.rms_before, out.rms_after);
@@ -95,6 +104,12 @@ void ExpectNamed(const Outcome& out, const std::string& effect, int joint) {
   EXPECT_EQ(top.joint, joint);
   EXPECT_GT(top.score, 10.0);
   EXPECT_LT(top.rms_after, top.rms_before);
+  EXPECT_LT(top.residual_rms_after, top.residual_rms_before);
+  // What the diagnosis says the effect would leave on this log matches a refit with it (the
+  // hyper-parameters of the two fits differ slightly, hence 15%).
+  if (out.refit_residual_rms >= 0) {
+    EXPECT_NEAR(top.residual_rms_after, out.refit_residual_rms, 0.15 * out.refit_residual_rms);
+  }
   // Adding the named effect cuts the test RMS of that joint substantially.
   EXPECT_LT(out.rms_after, 0.7 * out.rms_before);
 }

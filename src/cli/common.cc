@@ -19,9 +19,6 @@ namespace structgp {
 namespace cli {
 namespace {
 
-// Rows of features evaluated at once when accumulating statistics: memory O(kChunk * D).
-constexpr Eigen::Index kChunkRows = 1024;
-
 // A variable along which the residual concentrates is shown when its bin means explain at
 // least this fraction of the residual variance.
 constexpr double kMinExplained = 0.05;
@@ -47,13 +44,9 @@ void FitFeatureMapByEvidence(const Matrix& X, const Matrix& Y, const FitSettings
   const auto& map = model->feature_map();
   progress.Line(Format("accumulating Phi^T Phi over %d rows (D = %d)", static_cast<int>(X.rows()),
                        map->dim()));
-  SufficientStatistics stats(map->dim(), model->num_joints());
-  Matrix phi;
-  for (Eigen::Index begin = 0; begin < X.rows(); begin += kChunkRows) {
-    const Eigen::Index rows = std::min(kChunkRows, X.rows() - begin);
-    map->EvaluateRows(X.middleRows(begin, rows), &phi);
-    stats.Accumulate(phi, Y.middleRows(begin, rows));
-  }
+  AccumulateOptions accumulate;
+  accumulate.num_threads = settings.num_threads;
+  SufficientStatistics stats = AccumulateStatistics(*map, X, Y, accumulate);
   const WeightSpaceEvidence evidence(map, std::move(stats));
   progress.Line("profiling the noise level and output scales by evidence");
   try {
@@ -232,9 +225,9 @@ ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects) {
   return spec;
 }
 
-RobotModel MakeModel(const ModelSpec& spec, int num_joints) {
+RobotModel MakeModel(const ModelSpec& spec, int num_joints, const RobotModelOptions& options) {
   try {
-    return RobotModel(spec, num_joints);
+    return RobotModel(spec, num_joints, options);
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--model/--effects: ") + e.what());
   }
@@ -282,6 +275,15 @@ void FitModel(const RobotData& data, const FitSettings& settings, const Progress
     throw NumericalError(std::string("fitting the model failed: ") + ToString(status) +
                          " (the posterior precision is not numerically positive definite; "
                          "try --hyper fixed, or check the data for duplicated rows)");
+  }
+  if (model->gp().subsampled()) {
+    const std::string note = Format(
+        "the function-space form was fitted on %d evenly spaced rows of %d (--max-kernel-rows; "
+        "its fit costs O(m^3) time and O(m^2) memory); a feature-map model (pol, motor) learns "
+        "from every row",
+        static_cast<int>(model->gp().fit_rows()), static_cast<int>(model->gp().data_rows()));
+    progress.Line(note);
+    info->notes.push_back(note);
   }
   info->seconds = progress.seconds() - start;
 }
@@ -478,9 +480,10 @@ std::string DiagnosisSummary(const Diagnosis& d, const ModelSpec& spec,
   };
   for (const Suggestion& s : d.suggestions) {
     os << Format(
-        "joint %d: missing %s (evidence %+.0f nats), held-out RMS %.3g -> %.3g; add "
-        "with --effects %s\n",
-        s.joint, DescribeEffect(s).c_str(), s.score, s.rms_before, s.rms_after,
+        "joint %d: missing %s (evidence %+.0f nats): residual RMS %.3g -> %.3g, held-out "
+        "RMS (%d contiguous blocks) %.3g -> %.3g; add with --effects %s\n",
+        s.joint, DescribeEffect(s).c_str(), s.score, s.residual_rms_before, s.residual_rms_after,
+        options.folds, s.rms_before, s.rms_after,
         shell_word((existing.empty() ? "" : existing + ",") + s.spec).c_str());
   }
   const ModelSpec fixed = WithSuggestions(spec, d);

@@ -411,8 +411,19 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
       }
     }
     if (best < 0) break;
-    out.suggestions.push_back(best_s);
     Candidate& chosen = candidates[static_cast<size_t>(best)];
+    {
+      // Residual of the chosen joint on all the data, refitted without and with the effect.
+      const int j = chosen.joint - 1;
+      const Augmented aug = Augment(base[0], Gs[0], crosses[0], B, chosen.cols, lambda, s2n);
+      const Vector we = aug.z.solve(Vector(aug.u.col(j)));
+      const Vector wb = base[0].W.col(j) - base[0].llt.matrixU().solve(Vector(aug.V * we));
+      const Vector before = Y.col(j) - F(Eigen::all, B) * base[0].W.col(j);
+      const Vector after = Y.col(j) - F(Eigen::all, B) * wb - F(Eigen::all, chosen.cols) * we;
+      best_s.residual_rms_before = std::sqrt(before.squaredNorm() / m);
+      best_s.residual_rms_after = std::sqrt(after.squaredNorm() / m);
+    }
+    out.suggestions.push_back(best_s);
     B.insert(B.end(), chosen.cols.begin(), chosen.cols.end());
     for (auto& c : candidates) {
       if (c.effect == chosen.effect && c.joint == chosen.joint) c.alive = false;
@@ -452,6 +463,8 @@ std::string ToJson(const Diagnosis& d) {
     js["score"] = s.score;
     js["rms_before"] = s.rms_before;
     js["rms_after"] = s.rms_after;
+    js["residual_rms_before"] = s.residual_rms_before;
+    js["residual_rms_after"] = s.residual_rms_after;
     js["params"] = nlohmann::ordered_json::object();
     for (const auto& [k, v] : s.params) js["params"][k] = v;
     js["spec"] = s.spec;

@@ -441,14 +441,19 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
   *html +=
       "<table>\n<thead><tr><th>#</th><th class=\"text\">Effect</th><th>Joint</th>"
       "<th title=\"Gain in log marginal likelihood of the joint's torque\">Evidence gain "
-      "(nats)</th><th title=\"Blocked cross-validation\">Held-out RMS before &rarr; "
+      "(nats)</th><th title=\"The model refitted on all these data without and with the "
+      "effect\">Residual RMS before &rarr; after</th><th title=\"Blocked cross-validation on "
+      "contiguous blocks: each block predicted from the others\">Held-out RMS before &rarr; "
       "after</th><th class=\"text\">Parameters</th><th class=\"text\">--effects</th>"
       "</tr></thead>\n<tbody>\n";
   for (std::size_t i = 0; i < d.suggestions.size(); ++i) {
     const Suggestion& s = d.suggestions[i];
     *html += "<tr><td>" + std::to_string(i + 1) + "</td><td class=\"text\"><b>" + Escape(s.effect) +
              "</b></td><td>" + std::to_string(s.joint) + "</td><td>" + FormatFixed(s.score, 1) +
-             "</td><td>" + FormatNumber(s.rms_before, kTableDigits) + " &rarr; " +
+             "</td><td>" + FormatNumber(s.residual_rms_before, kTableDigits) + " &rarr; " +
+             FormatNumber(s.residual_rms_after, kTableDigits) +
+             ChangeBadge(s.residual_rms_before, s.residual_rms_after) + "</td><td>" +
+             FormatNumber(s.rms_before, kTableDigits) + " &rarr; " +
              FormatNumber(s.rms_after, kTableDigits) + ChangeBadge(s.rms_before, s.rms_after) +
              "</td><td class=\"text\">" + Parameters(s.params) + "</td><td class=\"text\"><code>" +
              Escape(s.spec) + "</code></td></tr>\n";
