@@ -65,7 +65,8 @@ std::string ModelLabel(const ModelSpec& spec);
 /// Builds the model of --model and --effects text; UsageError naming the flag when either
 /// cannot be parsed or does not fit the robot.
 ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects);
-RobotModel MakeModel(const ModelSpec& spec, int num_joints);
+RobotModel MakeModel(const ModelSpec& spec, int num_joints,
+                     const RobotModelOptions& options = RobotModelOptions());
 
 enum class HyperMethod { kMaximumLikelihood, kCrossValidation, kFixed };
 /// "ml", "cv", "fixed".
@@ -80,6 +81,8 @@ struct FitSettings {
   int ml_max_rows = 1000;
   /// Ceres prints one line per LBFGS iteration.
   bool verbose = false;
+  /// Threads accumulating Phi^T Phi of feature-map models (AccumulateStatistics).
+  int num_threads = 1;
 };
 
 /// What a fit did, for the summary.

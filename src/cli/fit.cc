@@ -39,6 +39,15 @@ class FitCommand : public Command {
                     "hyper-parameters are fitted; the model then uses all rows")
         ->check(CLI::Range(10, 1000000))
         ->capture_default_str();
+    cmd->add_option("--threads", settings_.num_threads,
+                    "Threads accumulating Phi^T Phi of feature-map models (large data sets)")
+        ->check(CLI::Range(1, 256))
+        ->capture_default_str();
+    cmd->add_option("--max-kernel-rows", max_kernel_rows_,
+                    "Function-space models (rbf, rbfs, or pol/motor with more features than "
+                    "rows) are fitted on at most this many evenly spaced rows; 0 = no limit")
+        ->check(CLI::Range(0, 100000000))
+        ->capture_default_str();
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
     cmd->add_flag("-v,--verbose", settings_.verbose, "One line per optimiser iteration");
     cmd->footer(
@@ -56,7 +65,10 @@ class FitCommand : public Command {
     const Progress progress("fit", quiet_);
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
-    RobotModel model = MakeModel(spec, data.num_joints);
+    RobotModelOptions options;
+    options.batch.num_threads = settings_.num_threads;
+    options.batch.max_kernel_rows = max_kernel_rows_;
+    RobotModel model = MakeModel(spec, data.num_joints, options);
     FitInfo info;
     FitModel(data, settings_, progress, &model, &info);
     const std::string text = ModelFileText(model);
@@ -69,6 +81,7 @@ class FitCommand : public Command {
  private:
   std::string data_, model_, effects_, hyper_ = "ml", out_;
   FitSettings settings_;
+  int max_kernel_rows_ = kDefaultMaxKernelRows;
   bool quiet_ = false;
 };
 

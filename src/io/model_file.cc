@@ -590,6 +590,8 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
     // A model fitted with Form::kAuto in function space that later grew past D points by
     // online additions would be refitted in weight space: keep the function space.
     RobotModelOptions load_options = options;
+    // The stored points are the model's own (a subset already, if one was taken): refit all.
+    load_options.batch.max_kernel_rows = 0;
     if (probe.feature_map() && load_options.form == Form::kAuto &&
         probe.feature_map()->dim() <= X.rows()) {
       load_options.form = Form::kFunctionSpace;

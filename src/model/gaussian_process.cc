@@ -1,6 +1,7 @@
 #include "structgp/model/gaussian_process.h"
 
 #include <stdexcept>
+#include <string>
 
 #include "structgp/core/validate.h"
 #include "structgp/kernel/feature_kernel.h"
@@ -9,28 +10,77 @@ namespace structgp {
 
 const char* ToString(Form form) {
   switch (form) {
-    case Form::kAuto: return "auto";
-    case Form::kWeightSpace: return "weight_space";
-    case Form::kFunctionSpace: return "function_space";
+    case Form::kAuto:
+      return "auto";
+    case Form::kWeightSpace:
+      return "weight_space";
+    case Form::kFunctionSpace:
+      return "function_space";
   }
   return "unknown";
 }
 
+namespace {
+
+void ValidateBatch(const BatchFitOptions& batch) {
+  if (batch.num_threads < 1) {
+    throw std::invalid_argument("BatchFitOptions::num_threads: expected >= 1, got " +
+                                std::to_string(batch.num_threads));
+  }
+  if (batch.chunk_rows < 1) {
+    throw std::invalid_argument("BatchFitOptions::chunk_rows: expected >= 1, got " +
+                                std::to_string(batch.chunk_rows));
+  }
+  if (batch.max_kernel_rows < 0) {
+    throw std::invalid_argument(
+        "BatchFitOptions::max_kernel_rows: expected >= 0 (0: no limit), "
+        "got " +
+        std::to_string(batch.max_kernel_rows));
+  }
+}
+
+// Rows floor(k m / M), k = 0..M-1, of X and Y when m > M > 0; else nothing is copied.
+bool EvenlySpaced(const ConstMatrixRef& X, const ConstMatrixRef& Y, int max_rows, Matrix* Xs,
+                  Matrix* Ys) {
+  const Eigen::Index m = X.rows();
+  if (max_rows == 0 || m <= max_rows) return false;
+  Xs->resize(max_rows, X.cols());
+  Ys->resize(max_rows, Y.cols());
+  for (Eigen::Index k = 0; k < max_rows; ++k) {
+    const Eigen::Index i = k * m / max_rows;
+    Xs->row(k) = X.row(i);
+    Ys->row(k) = Y.row(i);
+  }
+  return true;
+}
+
+}  // namespace
+
 GaussianProcess::GaussianProcess(std::shared_ptr<const FeatureMap> map,
-                                 const Hyperparameters& hyper, int num_outputs, Form form)
-    : map_(std::move(map)), hyper_(hyper), num_outputs_(num_outputs), requested_(form),
-      active_(form) {
+                                 const Hyperparameters& hyper, int num_outputs, Form form,
+                                 const BatchFitOptions& batch)
+    : map_(std::move(map)),
+      hyper_(hyper),
+      num_outputs_(num_outputs),
+      requested_(form),
+      active_(form),
+      batch_(batch) {
+  ValidateBatch(batch_);
   if (!map_) throw std::invalid_argument("GaussianProcess: null feature map");
   hyper_.Validate(*map_, num_outputs);
   phi_.resize(map_->dim());
 }
 
 GaussianProcess::GaussianProcess(const Kernel& kernel, double noise_variance, int num_outputs,
-                                 const Vector& output_scales)
-    : kernel_(kernel.Clone()), num_outputs_(num_outputs), requested_(Form::kFunctionSpace),
-      active_(Form::kFunctionSpace) {
-  function_space_ = std::make_unique<KernelGP>(*kernel_, noise_variance, num_outputs,
-                                               output_scales);
+                                 const Vector& output_scales, const BatchFitOptions& batch)
+    : kernel_(kernel.Clone()),
+      num_outputs_(num_outputs),
+      requested_(Form::kFunctionSpace),
+      active_(Form::kFunctionSpace),
+      batch_(batch) {
+  ValidateBatch(batch_);
+  function_space_ =
+      std::make_unique<KernelGP>(*kernel_, noise_variance, num_outputs, output_scales);
 }
 
 int GaussianProcess::input_dim() const { return map_ ? map_->input_dim() : kernel_->input_dim(); }
@@ -41,38 +91,46 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   RequireSize("GaussianProcess::Fit Y", Y.rows(), X.rows(), "rows (as in X)");
   RequireFinite("GaussianProcess::Fit X", X);
   RequireFinite("GaussianProcess::Fit Y", Y);
-  if (!map_) return function_space_->Fit(X, Y);
+  Matrix Xs, Ys;
+  const bool subset = EvenlySpaced(X, Y, batch_.max_kernel_rows, &Xs, &Ys);
+  const Eigen::Index kernel_rows = subset ? Xs.rows() : X.rows();
+  if (!map_) {
+    const Status status = subset ? function_space_->Fit(Xs, Ys) : function_space_->Fit(X, Y);
+    if (status != Status::kOk) return status;
+    data_rows_ = X.rows();
+    fit_rows_ = kernel_rows;
+    return status;
+  }
 
   Form form = requested_;
   if (form == Form::kAuto) {
     form = map_->dim() <= X.rows() ? Form::kWeightSpace : Form::kFunctionSpace;
   }
   if (form == Form::kWeightSpace) {
-    auto model = std::make_unique<WeightSpaceGP>(PriorVariance(*map_, hyper_),
-                                                 hyper_.noise_variance(), num_outputs_,
-                                                 hyper_.output_scales());
-    // Stream the features in chunks: memory O(chunk * D), never O(m * D).
-    constexpr Eigen::Index kChunk = 1024;
-    SufficientStatistics stats(map_->dim(), num_outputs_);
-    Matrix Phi;
-    for (Eigen::Index begin = 0; begin < X.rows(); begin += kChunk) {
-      const Eigen::Index rows = std::min(kChunk, X.rows() - begin);
-      map_->EvaluateRows(X.middleRows(begin, rows), &Phi);
-      stats.Accumulate(Phi, Y.middleRows(begin, rows));
-    }
+    auto model =
+        std::make_unique<WeightSpaceGP>(PriorVariance(*map_, hyper_), hyper_.noise_variance(),
+                                        num_outputs_, hyper_.output_scales());
+    // Stream the features in chunks: memory O(threads * (D^2 + chunk * D)), never O(m * D).
+    AccumulateOptions accumulate;
+    accumulate.chunk_rows = batch_.chunk_rows;
+    accumulate.num_threads = batch_.num_threads;
+    const SufficientStatistics stats = AccumulateStatistics(*map_, X, Y, accumulate);
     const Status status = model->Fit(stats);
     if (status != Status::kOk) return status;
     weight_space_ = std::move(model);
     function_space_.reset();
+    fit_rows_ = X.rows();
   } else {
     kernel_ = std::make_unique<FeatureKernel>(map_, hyper_);
     auto model = std::make_unique<KernelGP>(*kernel_, hyper_.noise_variance(), num_outputs_,
                                             hyper_.output_scales());
-    const Status status = model->Fit(X, Y);
+    const Status status = subset ? model->Fit(Xs, Ys) : model->Fit(X, Y);
     if (status != Status::kOk) return status;
     function_space_ = std::move(model);
     weight_space_.reset();
+    fit_rows_ = kernel_rows;
   }
+  data_rows_ = X.rows();
   active_ = form;
   return Status::kOk;
 }

@@ -171,12 +171,13 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   RequireSize("RobotModel::Fit Y", Y.cols(), num_joints_, "columns (joints)");
   std::unique_ptr<GaussianProcess> gp;
   if (map_) {
-    gp = std::make_unique<GaussianProcess>(map_, hyper, num_joints_, options_.form);
+    gp = std::make_unique<GaussianProcess>(map_, hyper, num_joints_, options_.form,
+                                           options_.batch);
   } else {
     RequireSize("RobotModel::Fit hyper.log_output_scale", hyper.log_output_scale.size(),
                 num_joints_);
     gp = std::make_unique<GaussianProcess>(*kernel_, hyper.noise_variance(), num_joints_,
-                                           hyper.output_scales());
+                                           hyper.output_scales(), options_.batch);
   }
   const Status status = gp->Fit(X, Y);
   if (status != Status::kOk) return status;

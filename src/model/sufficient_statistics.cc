@@ -1,5 +1,12 @@
 #include "structgp/model/sufficient_statistics.h"
 
+#include <algorithm>
+#include <exception>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
 #include "structgp/core/validate.h"
 
 namespace structgp {
@@ -19,6 +26,120 @@ void SufficientStatistics::Accumulate(const ConstMatrixRef& Phi, const ConstMatr
   cross.noalias() += Phi.transpose() * Y;
   y_squared += Y.colwise().squaredNorm().transpose();
   count += static_cast<double>(Phi.rows());
+}
+
+void SufficientStatistics::AccumulateTransposed(const ConstMatrixRef& PhiT,
+                                                const ConstMatrixRef& Y) {
+  RequireSize("SufficientStatistics::AccumulateTransposed PhiT", PhiT.rows(), num_features(),
+              "rows");
+  RequireSize("SufficientStatistics::AccumulateTransposed Y", Y.cols(), num_outputs(), "columns");
+  RequireSize("SufficientStatistics::AccumulateTransposed Y", Y.rows(), PhiT.cols(),
+              "rows (as columns of PhiT)");
+  RequireFinite("SufficientStatistics::AccumulateTransposed PhiT", PhiT);
+  RequireFinite("SufficientStatistics::AccumulateTransposed Y", Y);
+  gram.selfadjointView<Eigen::Lower>().rankUpdate(PhiT);
+  cross.noalias() += PhiT * Y;
+  y_squared += Y.colwise().squaredNorm().transpose();
+  count += static_cast<double>(PhiT.cols());
+}
+
+void SufficientStatistics::Merge(const SufficientStatistics& other) {
+  RequireSize("SufficientStatistics::Merge", other.num_features(), num_features(), "features");
+  RequireSize("SufficientStatistics::Merge", other.num_outputs(), num_outputs(), "outputs");
+  gram.triangularView<Eigen::Lower>() += other.gram;
+  cross += other.cross;
+  y_squared += other.y_squared;
+  count += other.count;
+}
+
+namespace {
+
+// Rows [begin, end) into stats, chunk_rows samples at a time.
+void AccumulateRange(const FeatureMap& map, const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                     Eigen::Index begin, Eigen::Index end, Eigen::Index chunk_rows,
+                     SufficientStatistics* stats) {
+  const int D = map.dim();
+  Matrix PhiT(D, std::min(chunk_rows, std::max<Eigen::Index>(end - begin, 0)));
+  Vector x(map.input_dim());
+  for (Eigen::Index start = begin; start < end; start += chunk_rows) {
+    const Eigen::Index rows = std::min(chunk_rows, end - start);
+    for (Eigen::Index i = 0; i < rows; ++i) {
+      x = X.row(start + i).transpose();
+      map.Evaluate(x, PhiT.col(i));
+    }
+    const auto block = PhiT.leftCols(rows);
+    if (!block.allFinite()) {
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        if (!PhiT.col(i).allFinite()) {
+          throw std::invalid_argument("AccumulateStatistics: the features of row " +
+                                      std::to_string(start + i) + " are not finite");
+        }
+      }
+    }
+    stats->gram.selfadjointView<Eigen::Lower>().rankUpdate(block);
+    stats->cross.noalias() += block * Y.middleRows(start, rows);
+    stats->y_squared += Y.middleRows(start, rows).colwise().squaredNorm().transpose();
+    stats->count += static_cast<double>(rows);
+  }
+}
+
+}  // namespace
+
+SufficientStatistics AccumulateStatistics(const FeatureMap& map, const ConstMatrixRef& X,
+                                          const ConstMatrixRef& Y,
+                                          const AccumulateOptions& options) {
+  RequireSize("AccumulateStatistics X", X.cols(), map.input_dim(), "columns");
+  RequireSize("AccumulateStatistics Y", Y.rows(), X.rows(), "rows (as in X)");
+  if (options.chunk_rows < 1) {
+    throw std::invalid_argument("AccumulateOptions::chunk_rows: expected >= 1, got " +
+                                std::to_string(options.chunk_rows));
+  }
+  if (options.num_threads < 1) {
+    throw std::invalid_argument("AccumulateOptions::num_threads: expected >= 1, got " +
+                                std::to_string(options.num_threads));
+  }
+  RequireFinite("AccumulateStatistics X", X);
+  RequireFinite("AccumulateStatistics Y", Y);
+  const int D = map.dim();
+  const int P = static_cast<int>(Y.cols());
+  const Eigen::Index m = X.rows();
+  // No more workers than chunks: a worker with less than one chunk costs a D^2 accumulator
+  // for nothing.
+  const Eigen::Index chunks = (m + options.chunk_rows - 1) / options.chunk_rows;
+  const int workers = static_cast<int>(
+      std::max<Eigen::Index>(1, std::min<Eigen::Index>(options.num_threads, chunks)));
+  SufficientStatistics total(D, P);
+  if (workers == 1) {
+    AccumulateRange(map, X, Y, 0, m, options.chunk_rows, &total);
+    return total;
+  }
+  // Contiguous ranges of whole chunks, as even as possible.
+  std::vector<Eigen::Index> bounds(static_cast<size_t>(workers) + 1);
+  for (int w = 0; w <= workers; ++w) {
+    bounds[static_cast<size_t>(w)] = std::min(m, chunks * w / workers * options.chunk_rows);
+  }
+  std::vector<SufficientStatistics> parts;
+  parts.reserve(static_cast<size_t>(workers));
+  for (int w = 0; w < workers; ++w) parts.emplace_back(D, P);
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(workers));
+  std::vector<std::thread> threads;
+  threads.reserve(static_cast<size_t>(workers) - 1);
+  auto work = [&](int w) {
+    try {
+      AccumulateRange(map, X, Y, bounds[static_cast<size_t>(w)], bounds[static_cast<size_t>(w) + 1],
+                      options.chunk_rows, &parts[static_cast<size_t>(w)]);
+    } catch (...) {
+      errors[static_cast<size_t>(w)] = std::current_exception();
+    }
+  };
+  for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
+  work(0);
+  for (auto& t : threads) t.join();
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  for (const auto& part : parts) total.Merge(part);
+  return total;
 }
 
 }  // namespace structgp

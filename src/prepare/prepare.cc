@@ -1,7 +1,7 @@
 #include "structgp/prepare/prepare.h"
 
 #include <algorithm>
-#include <charconv>
+#include <cstdio>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -13,11 +13,18 @@
 namespace structgp {
 namespace {
 
-// Shortest text that reads back as the same double.
+// A value for a message: 10 significant digits, no trailing zeros.
 std::string Num(double value) {
   char buffer[32];
-  const auto r = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, r.ptr);
+  std::snprintf(buffer, sizeof(buffer), "%.10g", value);
+  return buffer;
+}
+
+// A percentage for a message, 3 significant digits.
+std::string Percent(double fraction) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.3g%%", 100.0 * fraction);
+  return buffer;
 }
 
 // Fraction of the sampling rate used as cut-off by default for slow logs.
@@ -84,8 +91,8 @@ Sampling MeasureSampling(const RawLog& log, double max_time_jitter) {
       FailTime(log, i,
                "sampling is not uniform: step of " + Num(steps[static_cast<std::size_t>(i - 1)]) +
                    " s from the previous sample, the median step is " + Num(s.step) + " s (" +
-                   Num(100.0 * jitter) + "% off, at most " + Num(100.0 * max_time_jitter) +
-                   "% accepted); split the log at gaps or resample it first");
+                   Percent(jitter) + " off, at most " + Percent(max_time_jitter) +
+                   " accepted); split the log at gaps or resample it first");
     }
     s.max_jitter = std::max(s.max_jitter, jitter);
   }

@@ -16,6 +16,7 @@
 #include "structgp/hyper/hyperparameters.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/model/kernel_gp.h"
+#include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 
 namespace structgp {
@@ -29,18 +30,47 @@ enum class Form {
 /// "auto", "weight_space", "function_space".
 const char* ToString(Form form);
 
+/// Default largest number of rows the function-space form is fitted on. Its batch fit needs
+/// O(m^2) memory and O(m^3) time: at m = 5000 that is 200 MB for K and 100 MB for the packed
+/// factor and ~10 s on one core; beyond it a subset is used (see BatchFitOptions).
+inline constexpr int kDefaultMaxKernelRows = 5000;
+
+/// How a batch fit handles large data sets.
+struct BatchFitOptions {
+  /// Weight space: worker threads that accumulate Phi^T Phi (AccumulateStatistics); the
+  /// result equals the single-thread one up to the order of floating-point additions.
+  int num_threads = 1;
+  /// Weight space: samples whose features are held at once, per worker.
+  Eigen::Index chunk_rows = kDefaultChunkRows;
+  /// Function space: with more rows than this, the model is fitted on this many rows, evenly
+  /// spaced through the data (row floor(k m / M) for k = 0..M-1), and subsampled() reports
+  /// it. 0 means no limit.
+  int max_kernel_rows = kDefaultMaxKernelRows;
+};
+
 class GaussianProcess {
  public:
   /// A model whose kernel is the feature map with the prior given by hyper.
   GaussianProcess(std::shared_ptr<const FeatureMap> map, const Hyperparameters& hyper,
-                  int num_outputs, Form form = Form::kAuto);
+                  int num_outputs, Form form = Form::kAuto,
+                  const BatchFitOptions& batch = BatchFitOptions());
   /// A model with a kernel that has no finite map (rbf, rbfs): always the function space.
   GaussianProcess(const Kernel& kernel, double noise_variance, int num_outputs,
-                  const Vector& output_scales = Vector());
+                  const Vector& output_scales = Vector(),
+                  const BatchFitOptions& batch = BatchFitOptions());
 
-  /// Fits X (m x input_dim) and Y (m x P); with Form::kAuto picks the form from D and m.
-  /// Throws std::invalid_argument on bad sizes or NaN/Inf (naming row and column).
+  /// Fits X (m x input_dim) and Y (m x P); with Form::kAuto picks the form from D and m
+  /// (the form's choice uses all m rows; the function space then keeps at most
+  /// BatchFitOptions::max_kernel_rows of them). Throws std::invalid_argument on bad sizes,
+  /// bad options or NaN/Inf (naming row and column).
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
+
+  const BatchFitOptions& batch_options() const { return batch_; }
+  /// Rows given to the last successful Fit, and rows the model was fitted on (fewer when the
+  /// function space took a subset).
+  Eigen::Index data_rows() const { return data_rows_; }
+  Eigen::Index fit_rows() const { return fit_rows_; }
+  bool subsampled() const { return fit_rows_ < data_rows_; }
 
   /// The form in use (never kAuto once fitted; before Fit, the requested form).
   Form form() const { return active_; }
@@ -69,6 +99,9 @@ class GaussianProcess {
   Form active_;
   std::unique_ptr<WeightSpaceGP> weight_space_;
   std::unique_ptr<KernelGP> function_space_;
+  BatchFitOptions batch_;
+  Eigen::Index data_rows_ = 0;
+  Eigen::Index fit_rows_ = 0;
   mutable Vector phi_;  // feature scratch (D)
 };
 

@@ -36,6 +36,9 @@ struct RobotModelOptions {
   /// Prior standard deviation of friction and effect coefficients, relative to each joint's
   /// torque scale: a broad prior (the semi-parametric sum of the paper, eqs. 43-44).
   double broad_prior_std = 10.0;
+  /// Large data sets: threads of the weight-space accumulation and the row limit of the
+  /// function-space form (see BatchFitOptions; gp().subsampled() tells when it applied).
+  BatchFitOptions batch;
 };
 
 /// One physical part of a prediction, for one output.
