@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """structgp against scikit-learn's GaussianProcessRegressor, on the same split, in one run.
 
 For each data set and each training size m, the same m training rows (evenly spaced over the
@@ -12,16 +12,19 @@ training part, so that they span the whole training period) are given to
     form (PolFormulaKernel + friction) otherwise.
 
 Both are timed as wall-clock time of the whole fit including the hyper-parameter optimisation
-(structgp: as reported by real_data, without process start and file reading). Test error:
+(structgp: as reported by real_data, without process start and file reading), and by the CPU
+time of the process over fit and prediction (numpy's BLAS may use several threads; structgp
+uses one). Test error:
 nMSE per joint = MSE_j / Var(test tau_j), mean over joints.
 
 Data sets: "sim3", a simulated three-joint KDL arm (bench program sim_robot_data: 5,000
 training and 2,000 following test rows), and "ur10", the real UR10 pick-and-place log
 (train.csv.gz / test.csv.gz of --data-dir/ur10-picknplace).
 
-Usage (from the source tree, after building real_data and sim_robot_data):
+Usage (from the source tree, after building real_data and sim_robot_data; Debian's python3
+with python3-sklearn, see scripts/install-deps.sh):
 
-    python3 bench/sklearn_compare.py --build-dir=/path/to/build [--sizes=1000,2000,5000]
+    /usr/bin/python3 bench/sklearn_compare.py --build-dir=/path/to/build [--sizes=1000,2000,5000]
         [--datasets=sim3,ur10] [--data-dir=../shared/data] [--out=docs/sklearn_comparison.csv]
 """
 
@@ -93,15 +96,16 @@ def fit_sklearn(X, Y, X_test, Y_test, maxiter):
             return res.x, res.fun
     gp = GaussianProcessRegressor(kernel=kernel, normalize_y=True, optimizer=optimizer,
                                   n_restarts_optimizer=0, random_state=0)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     gp.fit(X, Y)
     fit_s = time.perf_counter() - start
     start = time.perf_counter()
     P = gp.predict(X_test)
     predict_s = time.perf_counter() - start
+    cpu_s = time.process_time() - cpu_start
     if P.ndim == 1:
         P = P[:, None]
-    return nmse(Y_test, P), fit_s, predict_s, str(gp.kernel_)
+    return nmse(Y_test, P), fit_s, predict_s, str(gp.kernel_), cpu_s
 
 
 def fit_structgp(real_data, train_path, test_path, name, m, work):
@@ -119,7 +123,8 @@ def fit_structgp(real_data, train_path, test_path, name, m, work):
     for line in proc.stdout.splitlines():
         if line.startswith("pol+fri "):
             note = line.split("s  ", 1)[-1].strip() if "s  " in line else ""
-    return per_joint, float(row["fit_seconds"]), float(row["predict_seconds"]), note
+    return (per_joint, float(row["fit_seconds"]), float(row["predict_seconds"]), note,
+            float(row["cpu_seconds"]))
 
 
 def main():
@@ -176,23 +181,28 @@ def main():
                 results.append((name, len(idx), sk, sg))
 
     print()
-    print("| data | m | sklearn nMSE | sklearn fit s | structgp nMSE | structgp fit s | "
-          "speed ratio | target (>= 20x, nMSE <=) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| data | m | sklearn nMSE | sklearn fit s | sklearn CPU s | structgp nMSE | "
+          "structgp fit s | structgp CPU s | speed ratio (wall) | ratio (CPU) | "
+          "target (>= 20x, nMSE <=) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, m, sk, sg in results:
         ratio = sk[1] / sg[1] if sg[1] > 0 else float("nan")
+        cpu_ratio = sk[4] / sg[4] if sg[4] > 0 else float("nan")
         met = ratio >= 20 and sg[0].mean() <= sk[0].mean()
-        print("| %s | %d | %.4g | %.2f | %.4g | %.2f | %.1fx | %s |" %
-              (name, m, sk[0].mean(), sk[1], sg[0].mean(), sg[1], ratio, "met" if met else "not met"))
+        print("| %s | %d | %.4g | %.2f | %.1f | %.4g | %.2f | %.1f | %.1fx | %.1fx | %s |" %
+              (name, m, sk[0].mean(), sk[1], sk[4], sg[0].mean(), sg[1], sg[4], ratio, cpu_ratio,
+               "met" if met else "not met"))
     if args.out:
         tmp = args.out + ".tmp"
         with open(tmp, "w") as f:
             f.write("dataset,m,sklearn_mean_nmse,sklearn_fit_seconds,sklearn_predict_seconds,"
-                    "structgp_mean_nmse,structgp_fit_seconds,structgp_predict_seconds,"
+                    "sklearn_cpu_seconds,structgp_mean_nmse,structgp_fit_seconds,"
+                    "structgp_predict_seconds,structgp_cpu_seconds,"
                     "sklearn_nmse_per_joint,structgp_nmse_per_joint,sklearn_kernel\n")
             for name, m, sk, sg in results:
-                f.write("%s,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%s,\"%s\"\n" %
-                        (name, m, sk[0].mean(), sk[1], sk[2], sg[0].mean(), sg[1], sg[2],
+                f.write("%s,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%s,\"%s\"\n" %
+                        (name, m, sk[0].mean(), sk[1], sk[2], sk[4], sg[0].mean(), sg[1], sg[2],
+                         sg[4],
                          ";".join("%.4g" % v for v in sk[0]),
                          ";".join("%.4g" % v for v in sg[0]), sk[3]))
         os.replace(tmp, args.out)
