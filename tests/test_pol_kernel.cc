@@ -85,7 +85,7 @@ std::vector<Vector> TestParameters(int num_parameters, std::mt19937_64* rng) {
 
 // sum_k Lambda_k phi_k(a) phi_k(b) cancels: the rounding of both evaluations is bounded by
 // a few eps times sum_k |Lambda_k phi_k(a) phi_k(b)| (D terms, but pairwise-like error growth
-// in practice). 1e-12 of that sum is the tolerance the issue asks for; observed errors are
+// in practice). 1e-12 of that sum is the required tolerance; observed errors are
 // ~1e-15.
 struct Reference {
   double value = 0.0;
