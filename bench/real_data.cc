@@ -110,6 +110,7 @@ struct Flags {
   int max_test = 0;
   bool quick = false;
   bool check = false;
+  bool verbose = false;
   std::string out, csv;
 };
 
@@ -130,6 +131,7 @@ const char kUsage[] =
     "  --quick               tiny slice (300 / 100 rows, 10 iterations, M = 32)\n"
     "  --check               exit 3 unless all errors are finite and pol+fri has a mean\n"
     "                        nMSE (by the training variance) below 0.6\n"
+    "  --verbose             print the fitted hyper-parameters of every model\n"
     "  --out=FILE.md --csv=FILE.csv   write the tables (atomically)\n";
 
 std::vector<std::string> SplitList(const std::string& text) {
@@ -190,6 +192,8 @@ Flags ParseFlags(int argc, char** argv) {
       f.quick = true;
     } else if (name == "--check") {
       f.check = true;
+    } else if (name == "--verbose") {
+      f.verbose = true;
     } else if (name == "--data-dir") {
       need_value();
       f.data_dir = value;
@@ -610,6 +614,15 @@ Result FitKernelForm(const Split& s, const std::string& model_name, const Flags&
   r.note = note.str();
   if (!ml.usable()) return r;
   kernel->set_parameters(hyper.kernel_parameters);
+  if (f.verbose) {
+    const std::vector<std::string> names = kernel->parameter_names();
+    std::printf("%s fitted:", model_name.c_str());
+    for (size_t i = 0; i < names.size(); ++i) {
+      std::printf(" %s=%.4g", names[i].c_str(),
+                  hyper.kernel_parameters[static_cast<Eigen::Index>(i)]);
+    }
+    std::printf(" log_noise_std=%.4g; %s\n", hyper.log_noise_std, ml.BriefReport().c_str());
+  }
 
   const std::vector<int> index = EvenlySpaced(s.train.size(), f.kernel_rows);
   const Matrix X = TakeRows(s.train.X, index), Y = TakeRows(Z, index);

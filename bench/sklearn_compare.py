@@ -77,7 +77,11 @@ def nmse(Y, P):
     return ((Y - P) ** 2).mean(axis=0) / Y.var(axis=0)
 
 
-def fit_sklearn(X, Y, X_test, Y_test, maxiter):
+class _Budget(Exception):
+    pass
+
+
+def fit_sklearn(X, Y, X_test, Y_test, maxiter, max_seconds):
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
     from scipy.optimize import minimize
@@ -87,13 +91,33 @@ def fit_sklearn(X, Y, X_test, Y_test, maxiter):
     kernel = (ConstantKernel(1.0, (1e-3, 1e3)) * RBF(length_scale=spread,
                                                        length_scale_bounds=(1e-3, 1e5)) +
               WhiteKernel(1e-2, (1e-8, 1e1)))
-    optimizer = "fmin_l_bfgs_b"
-    if maxiter > 0:
-        # scikit-learn's own optimiser call with an iteration cap.
-        def optimizer(obj_func, initial_theta, bounds):
-            res = minimize(obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds,
-                           options={"maxiter": maxiter})
+    status = {"evaluations": 0, "stopped": False}
+
+    def optimizer(obj_func, initial_theta, bounds):
+        # scikit-learn's default optimiser call (L-BFGS-B on -log p with its gradient), with an
+        # optional iteration cap and a wall-clock budget: when the budget is spent, the best
+        # point evaluated so far is returned (as structgp's --ml-seconds does).
+        best = {"theta": initial_theta, "f": np.inf}
+        start = time.perf_counter()
+
+        def tracked(theta):
+            f, g = obj_func(theta)
+            status["evaluations"] += 1
+            if f < best["f"]:
+                best["theta"], best["f"] = np.array(theta), f
+            if max_seconds > 0 and time.perf_counter() - start > max_seconds:
+                status["stopped"] = True
+                raise _Budget()
+            return f, g
+
+        options = {"maxiter": maxiter} if maxiter > 0 else {}
+        try:
+            res = minimize(tracked, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds,
+                           options=options)
             return res.x, res.fun
+        except _Budget:
+            return best["theta"], best["f"]
+
     gp = GaussianProcessRegressor(kernel=kernel, normalize_y=True, optimizer=optimizer,
                                   n_restarts_optimizer=0, random_state=0)
     start, cpu_start = time.perf_counter(), time.process_time()
@@ -105,7 +129,9 @@ def fit_sklearn(X, Y, X_test, Y_test, maxiter):
     cpu_s = time.process_time() - cpu_start
     if P.ndim == 1:
         P = P[:, None]
-    return nmse(Y_test, P), fit_s, predict_s, str(gp.kernel_), cpu_s
+    note = "%d evaluations%s" % (status["evaluations"],
+                                 ", stopped by the time budget" if status["stopped"] else "")
+    return nmse(Y_test, P), fit_s, predict_s, str(gp.kernel_), cpu_s, note
 
 
 def fit_structgp(real_data, train_path, test_path, name, m, work):
@@ -138,6 +164,9 @@ def main():
     parser.add_argument("--datasets", default="sim3,ur10")
     parser.add_argument("--sk-maxiter", type=int, default=0,
                         help="cap on scikit-learn's L-BFGS-B iterations (0: its default)")
+    parser.add_argument("--sk-max-seconds", type=float, default=600.0,
+                        help="wall-clock budget of scikit-learn's optimiser per fit; the best "
+                        "point so far is used when it is spent (0: none)")
     parser.add_argument("--out", default="", help="CSV file for the results")
     args = parser.parse_args()
 
@@ -175,9 +204,10 @@ def main():
                 sg = fit_structgp(real_data, sub, test_file, name, len(idx), work)
                 print("%s m=%d structgp pol+fri: mean nMSE %.4g, fit %.2f s (%s)" %
                       (name, len(idx), sg[0].mean(), sg[1], sg[3]), flush=True)
-                sk = fit_sklearn(X[idx], Y[idx], X_test, Y_test, args.sk_maxiter)
-                print("%s m=%d scikit-learn: mean nMSE %.4g, fit %.2f s, kernel %s" %
-                      (name, len(idx), sk[0].mean(), sk[1], sk[3]), flush=True)
+                sk = fit_sklearn(X[idx], Y[idx], X_test, Y_test, args.sk_maxiter,
+                                 args.sk_max_seconds)
+                print("%s m=%d scikit-learn: mean nMSE %.4g, fit %.2f s (%s), kernel %s" %
+                      (name, len(idx), sk[0].mean(), sk[1], sk[5], sk[3]), flush=True)
                 results.append((name, len(idx), sk, sg))
 
     print()
@@ -191,20 +221,22 @@ def main():
         met = ratio >= 20 and sg[0].mean() <= sk[0].mean()
         print("| %s | %d | %.4g | %.2f | %.1f | %.4g | %.2f | %.1f | %.1fx | %.1fx | %s |" %
               (name, m, sk[0].mean(), sk[1], sk[4], sg[0].mean(), sg[1], sg[4], ratio, cpu_ratio,
-               "met" if met else "not met"))
+               ("met" if met else "not met") + ("; sklearn budget spent" if "budget" in sk[5]
+                                               else "")))
     if args.out:
         tmp = args.out + ".tmp"
         with open(tmp, "w") as f:
             f.write("dataset,m,sklearn_mean_nmse,sklearn_fit_seconds,sklearn_predict_seconds,"
                     "sklearn_cpu_seconds,structgp_mean_nmse,structgp_fit_seconds,"
                     "structgp_predict_seconds,structgp_cpu_seconds,"
-                    "sklearn_nmse_per_joint,structgp_nmse_per_joint,sklearn_kernel\n")
+                    "sklearn_nmse_per_joint,structgp_nmse_per_joint,sklearn_note,structgp_note,"
+                    "sklearn_kernel\n")
             for name, m, sk, sg in results:
-                f.write("%s,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%s,\"%s\"\n" %
+                f.write("%s,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%s,%s,\"%s\",\"%s\"\n" %
                         (name, m, sk[0].mean(), sk[1], sk[2], sk[4], sg[0].mean(), sg[1], sg[2],
                          sg[4],
                          ";".join("%.4g" % v for v in sk[0]),
-                         ";".join("%.4g" % v for v in sg[0]), sk[3]))
+                         ";".join("%.4g" % v for v in sg[0]), sk[5], sg[3], sk[3]))
         os.replace(tmp, args.out)
         print("wrote %s" % args.out)
 
