@@ -1,0 +1,165 @@
+// Batch training on 10^4..10^6 samples: time and peak memory of a weight-space fit (streamed,
+// multi-threaded accumulation of Phi^T Phi, then one O(D^3) factorisation) for D = 133 (the
+// 2-joint k_pol map) and D = 512 (random features on the same 6 inputs), 1 and 2 threads.
+//
+// Peak memory: the kernel's peak resident set size is reset before each fit (writing 5 to
+// /proc/self/clear_refs) and read after it (VmHWM in /proc/self/status); the counter
+// extra_MiB is that peak minus the resident size before the fit, i.e. what the fit itself
+// needed on top of the data (the data, m x 8 doubles, are made before and not counted;
+// main fixes glibc's mmap threshold so that released blocks leave the resident set).
+// bound_MiB is the design bound threads x (D^2 + chunk x D) doubles plus the D^2 factor
+// and the Cholesky work of WeightSpaceGP::Fit.
+//
+//   build/bench/bench_scale --benchmark_counters_tabular=true
+
+#include <benchmark/benchmark.h>
+#include <malloc.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+
+#include "structgp/feature/pol_feature_map.h"
+#include "structgp/feature/random_feature_map.h"
+#include "structgp/model/gaussian_process.h"
+
+namespace structgp {
+namespace {
+
+constexpr int kJoints = 2;
+constexpr int kInputs = 3 * kJoints;
+constexpr int kOutputs = kJoints;
+
+struct Data {
+  Matrix X, Y;
+};
+
+// One data set per m, made once (uniform states, random torques; only the cost matters).
+const Data& DataOfSize(Eigen::Index m) {
+  static std::map<Eigen::Index, Data> cache;
+  auto it = cache.find(m);
+  if (it != cache.end()) return it->second;
+  std::mt19937_64 rng(12345);
+  std::uniform_real_distribution<double> uniform(-2.0, 2.0);
+  Data d;
+  d.X = Matrix::NullaryExpr(m, kInputs, [&]() { return uniform(rng); });
+  d.Y = Matrix::NullaryExpr(m, kOutputs, [&]() { return uniform(rng); });
+  return cache.emplace(m, std::move(d)).first->second;
+}
+
+// Reads a "Name:   123 kB" line of /proc/self/status [MiB]; -1 when unavailable.
+double StatusMiB(const char* name) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const std::size_t n = std::strlen(name);
+  while (std::getline(in, line)) {
+    if (line.compare(0, n, name) == 0 && line.size() > n && line[n] == ':') {
+      return std::stod(line.substr(n + 1)) / 1024.0;
+    }
+  }
+  return -1.0;
+}
+
+// Resets the peak resident set size (Linux >= 4.0); false when not permitted.
+bool ResetPeak() {
+  std::ofstream out("/proc/self/clear_refs");
+  out << "5";
+  out.flush();
+  return static_cast<bool>(out);
+}
+
+std::shared_ptr<const FeatureMap> MapOfSize(int d) {
+  if (d == 133) return std::make_shared<PolFeatureMap>(kJoints);
+  return std::make_shared<RandomFeatureMap>(kInputs, d, 1, 7);
+}
+
+// Args: m, D (133 = pol, else random features), threads.
+void BM_BatchFitLarge(benchmark::State& state) {
+  const Eigen::Index m = state.range(0);
+  const int d = static_cast<int>(state.range(1));
+  const int threads = static_cast<int>(state.range(2));
+  const Data& data = DataOfSize(m);
+  const auto map = MapOfSize(d);
+  const Hyperparameters h = Hyperparameters::Defaults(*map, kOutputs);
+  BatchFitOptions batch;
+  batch.num_threads = threads;
+  double extra = 0.0;
+  for (auto _ : state) {
+    GaussianProcess gp(map, h, kOutputs, Form::kWeightSpace, batch);
+    const bool reset = ResetPeak();
+    const double before = StatusMiB("VmRSS");
+    if (gp.Fit(data.X, data.Y) != Status::kOk) state.SkipWithError("fit failed");
+    extra = reset ? StatusMiB("VmHWM") - before : -1.0;
+    benchmark::DoNotOptimize(gp.weight_space()->weights().data());
+  }
+  const double D = map->dim();
+  const double mib = 8.0 / (1024.0 * 1024.0);
+  state.counters["D"] = D;
+  state.counters["extra_MiB"] = extra;
+  // Per worker a D x D sum and a D x chunk block; with several workers also the total; then
+  // WeightSpaceGP::Fit's factor and work matrices (about 3 D x D).
+  state.counters["bound_MiB"] = (threads * (D * D + static_cast<double>(batch.chunk_rows) * D) +
+                                 (threads > 1 ? D * D : 0.0) + 3.0 * D * D) *
+                                mib;
+  state.counters["data_MiB"] = static_cast<double>(m) * (kInputs + kOutputs) * mib;
+  state.counters["samples_per_s"] =
+      benchmark::Counter(static_cast<double>(m), benchmark::Counter::kIsIterationInvariantRate);
+}
+
+// The statistics alone, new path (features written column by column into D x chunk, one
+// thread) against the earlier one (FeatureMap::EvaluateRows into a chunk x D matrix, then
+// SufficientStatistics::Accumulate). Args: m, D, 0 = earlier path / 1 = new path.
+void BM_Statistics(benchmark::State& state) {
+  const Eigen::Index m = state.range(0);
+  const auto map = MapOfSize(static_cast<int>(state.range(1)));
+  const Data& data = DataOfSize(m);
+  for (auto _ : state) {
+    if (state.range(2) == 1) {
+      const SufficientStatistics s = AccumulateStatistics(*map, data.X, data.Y);
+      benchmark::DoNotOptimize(s.gram.data());
+    } else {
+      SufficientStatistics s(map->dim(), kOutputs);
+      Matrix Phi;
+      for (Eigen::Index begin = 0; begin < m; begin += kDefaultChunkRows) {
+        const Eigen::Index rows = std::min(kDefaultChunkRows, m - begin);
+        map->EvaluateRows(data.X.middleRows(begin, rows), &Phi);
+        s.Accumulate(Phi, data.Y.middleRows(begin, rows));
+      }
+      benchmark::DoNotOptimize(s.gram.data());
+    }
+  }
+}
+
+BENCHMARK(BM_Statistics)
+    ->ArgNames({"m", "D", "new"})
+    ->ArgsProduct({{100000}, {133, 512}, {0, 1}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+BENCHMARK(BM_BatchFitLarge)
+    ->ArgNames({"m", "D", "threads"})
+    ->ArgsProduct({{10000, 100000, 1000000}, {133, 512}, {1, 2}})
+    ->Iterations(1)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace structgp
+
+int main(int argc, char** argv) {
+  // Fixed mmap threshold: every block above 128 KiB (a D x D matrix, a chunk of features) is
+  // mapped on allocation and unmapped on release, so the resident size follows the live
+  // memory; with glibc's default sliding threshold a released block would stay resident
+  // and a later fit could reuse it without raising the peak.
+  mallopt(M_MMAP_THRESHOLD, 128 * 1024);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
