@@ -299,8 +299,8 @@ std::string FitSummary(const RobotModel& model, const RobotData& data, const Fit
     os << "features     D = " << model.feature_map()->dim() << " (" << ToString(gp.form())
        << " form)\n";
   } else {
-    os << "features     none: kernel model (" << ToString(gp.form()) << " form, " << data.size()
-       << " stored points)\n";
+    os << "features     none: kernel model (" << ToString(gp.form()) << " form, "
+       << gp.function_space()->size() << " stored points)\n";
   }
   os << "hyper        " << info.method << Format(", %.2f s", info.seconds) << "\n";
   for (const auto& note : info.notes) os << "             " << note << "\n";
