@@ -1,7 +1,7 @@
-// structgp prepare, run as users run it: a raw log of a simulated two-link arm (t, q, motor
-// currents) becomes a data file whose qd and qdd match the analytic ones and which 'fit'
-// reads; bad input gives exit code 2, a message naming the flag or the file with line and
-// column, and leaves an existing output file byte for byte as it was.
+// structgp prepare (and fit's options for large data), run as users run it: a raw log of a
+// simulated two-link arm (t, q, motor currents) becomes a data file whose qd and qdd match the
+// analytic ones and which 'fit' reads; bad input gives exit code 2, a message naming the flag or
+// the file with line and column, and leaves an existing output file byte for byte as it was.
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -186,6 +186,40 @@ TEST(PrepareCli, BadInputNamesTheFileOrFlagAndWritesNothing) {
   EXPECT_EQ(help.code, 0);
   EXPECT_TRUE(Contains(help.out, "--current-gains")) << help.out;
   EXPECT_EQ(ReadFile(out), "previous contents\n");
+}
+
+// fit on a prepared log: a kernel model beyond --max-kernel-rows takes an evenly spaced subset
+// and says so; --threads 2 gives the one-thread model (same summary).
+TEST(FitCli, LargeDataOptions) {
+  TempDir dir;
+  const Log log = MakeLog();
+  WriteFile(dir.File("raw.csv"), log.csv);
+  const std::string data = dir.File("data.csv");
+  ASSERT_EQ(RunCli(dir, {"prepare", "--in", dir.File("raw.csv"), "--out", data, "--current-gains",
+                         "0.5,2", "-q"})
+                .code,
+            0);
+  const Result rbf = RunCli(dir, {"fit", "--data", data, "--model", "rbf", "--hyper", "fixed",
+                                  "--max-kernel-rows", "500", "--out", dir.File("rbf.json")});
+  ASSERT_EQ(rbf.code, 0) << rbf.err;
+  const std::string note = "the function-space form was fitted on 500 evenly spaced rows of 6000";
+  EXPECT_TRUE(Contains(rbf.out, note)) << rbf.out;
+  EXPECT_TRUE(Contains(rbf.err, note)) << rbf.err;
+  EXPECT_TRUE(Contains(rbf.out, "500 stored points")) << rbf.out;
+  std::string summary[2];
+  for (int threads = 1; threads <= 2; ++threads) {
+    const Result pol =
+        RunCli(dir, {"fit", "--data", data, "--model", "pol", "--hyper", "fixed", "--threads",
+                     std::to_string(threads), "--out", dir.File("pol.json"), "-q"});
+    ASSERT_EQ(pol.code, 0) << pol.err;
+    summary[threads - 1] = pol.out.substr(pol.out.find("features"));
+    summary[threads - 1] = summary[threads - 1].substr(0, summary[threads - 1].find("wrote"));
+  }
+  EXPECT_EQ(summary[0], summary[1]);
+  EXPECT_EQ(RunCli(dir, {"fit", "--data", data, "--model", "pol", "--threads", "0", "--out",
+                         dir.File("pol.json")})
+                .code,
+            2);
 }
 
 }  // namespace
