@@ -106,6 +106,7 @@ struct Flags {
   int ml_iterations = 100;
   double ml_seconds = 120.0;
   int max_weight_space_joints = 3;
+  double max_log_kernel_parameter = 12.0;
   int max_train = 0;  // 0 = all
   int max_test = 0;
   bool quick = false;
@@ -127,6 +128,7 @@ const char kUsage[] =
     "  --ml-iterations=K     LBFGS iterations per ML-II fit (100)\n"
     "  --ml-seconds=S        wall-clock limit per ML-II fit (120)\n"
     "  --max-weight-space-joints=N  pol in weight space up to N joints (3)\n"
+    "  --max-log-kernel-parameter=V upper bound of every kernel-form log hyper-parameter (12)\n"
     "  --max-train=M --max-test=M   M evenly spaced rows of each split only\n"
     "  --quick               tiny slice (300 / 100 rows, 10 iterations, M = 32)\n"
     "  --check               exit 3 unless all errors are finite and pol+fri has a mean\n"
@@ -239,6 +241,9 @@ Flags ParseFlags(int argc, char** argv) {
       explicit_iterations = true;
     } else if (name == "--ml-seconds") {
       f.ml_seconds = as_double();
+    } else if (name == "--max-log-kernel-parameter") {
+      need_value();
+      f.max_log_kernel_parameter = std::stod(value);
     } else if (name == "--max-weight-space-joints") {
       f.max_weight_space_joints = as_int();
     } else if (name == "--max-train") {
@@ -447,6 +452,7 @@ MaximumLikelihoodOptions MlOptions(const Flags& f) {
   o.gradient_tolerance = 1e-4;
   o.function_tolerance = 1e-7;
   o.max_seconds = f.ml_seconds;
+  o.kernel_parameter_bounds.upper = f.max_log_kernel_parameter;
   return o;
 }
 
@@ -628,9 +634,7 @@ Result FitKernelForm(const Split& s, const std::string& model_name, const Flags&
   const Matrix X = TakeRows(s.train.X, index), Y = TakeRows(Z, index);
   r.train_rows = static_cast<int>(index.size());
   r.form = "kernel form";
-  if (r.train_rows < s.train.size()) {
-    r.form += ", every " + std::to_string(s.train.size() / r.train_rows) + "th row";
-  }
+  if (r.train_rows < s.train.size()) r.form += ", evenly spaced rows";
   Matrix K;
   kernel->Gram(X, X, &K);
   // Outputs share the kernel; output j has prior s_j^2 k and noise s_j^2 sigma_n^2, so the
@@ -758,6 +762,31 @@ std::string CoverageTable(const Split& s) {
     }
     o << '\n';
   }
+  // Joint-space coverage: distance (rad, Euclidean over the N angles) from each test
+  // configuration to the nearest training configuration, against the same for training
+  // rows to their nearest other training row more than 50 rows away in time.
+  auto nearest = [&](const Matrix& A, int i, const Matrix& B, int skip_near) {
+    double best = std::numeric_limits<double>::infinity();
+    for (Eigen::Index k = 0; k < B.rows(); ++k) {
+      if (skip_near >= 0 && std::abs(static_cast<int>(k) - i) <= skip_near) continue;
+      best = std::min(best, (A.row(i) - B.row(k)).squaredNorm());
+    }
+    return std::sqrt(best);
+  };
+  const Matrix q_train = s.train.X.leftCols(n), q_test = s.test.X.leftCols(n);
+  std::vector<double> test_d, train_d;
+  for (int i = 0; i < q_test.rows(); ++i) test_d.push_back(nearest(q_test, i, q_train, -1));
+  const std::vector<int> probe = EvenlySpaced(static_cast<int>(q_train.rows()), 500);
+  for (int i : probe) train_d.push_back(nearest(q_train, i, q_train, 50));
+  auto quantile = [](std::vector<double> v, double p) {
+    std::sort(v.begin(), v.end());
+    return v.empty() ? kNaN : v[static_cast<size_t>(p * static_cast<double>(v.size() - 1))];
+  };
+  o << "\nNearest training configuration q (rad, all joints): test rows median "
+    << Num(quantile(test_d, 0.5)) << ", 90% " << Num(quantile(test_d, 0.9)) << ", max "
+    << Num(quantile(test_d, 1.0)) << "; training rows (500 evenly spaced, to rows more than 50 "
+    << "steps away) median " << Num(quantile(train_d, 0.5)) << ", 90% "
+    << Num(quantile(train_d, 0.9)) << ".\n";
   return o.str();
 }
 
