@@ -4,11 +4,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include <gtest/gtest.h>
 
 #include "structgp/diagnose/diagnosis.h"
 #include "structgp/hyper/evidence.h"
+#include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/sim/hidden_effect.h"
 
@@ -153,6 +155,98 @@ TEST(Diagnosis, NamesDriftOnTheWholeLog) {
   }
   EXPECT_TRUE(named);
   EXPECT_LT(out.rms_after, 0.7 * out.rms_before);
+}
+
+// ---- models in function space --------------------------------------------------------------
+
+// From 4 joints on, pol runs on k_pol's formula (its explicit map has 8,830 features): the same
+// model as the explicit map used as a kernel, at O(N) instead of O(D) per kernel value.
+TEST(FunctionSpacePol, EqualsTheExplicitMapUsedAsAKernel) {
+  sim::HiddenEffectOptions o;
+  o.effect = HiddenEffect::kCoulomb;
+  o.train_duration = 1.2;
+  o.test_duration = 0.5;
+  const auto scenario = sim::MakeHiddenEffectScenario(sim::RandomRobot(4, 5), o);
+  const ModelSpec spec = ParseModelSpec("pol+fri");
+  RobotModel formula(spec, 4);
+  ASSERT_NE(formula.kernel(), nullptr);
+  ASSERT_EQ(formula.feature_map(), nullptr);
+  RobotModelOptions by_map;
+  by_map.max_explicit_features = 1 << 30;
+  by_map.form = Form::kFunctionSpace;
+  RobotModel explicit_map(spec, 4, by_map);
+  ASSERT_NE(explicit_map.feature_map(), nullptr);
+  EXPECT_GT(explicit_map.feature_map()->dim(), 8830);
+
+  const Matrix& X = scenario.train.X;
+  const Matrix& Y = scenario.train.Y;
+  ASSERT_EQ(formula.Fit(X, Y), Status::kOk);
+  ASSERT_EQ(explicit_map.Fit(X, Y), Status::kOk);
+  Matrix mean_a, mean_b, std_a, std_b;
+  formula.PredictRows(scenario.test.X, &mean_a, &std_a);
+  explicit_map.PredictRows(scenario.test.X, &mean_b, &std_b);
+  const double scale = mean_b.cwiseAbs().maxCoeff();
+  EXPECT_LT((mean_a - mean_b).cwiseAbs().maxCoeff(), 1e-8 * scale);
+  EXPECT_LT((std_a - std_b).cwiseAbs().maxCoeff(), 1e-6 * std_b.cwiseAbs().maxCoeff());
+}
+
+// A 4-joint robot with a hidden Coulomb friction on joint 3, modelled by pol in function space:
+// the diagnosis scores the candidates against Nystrom features of the model's kernel, names the
+// effect on the right joint, and adding it (still in function space) cuts the test error.
+TEST(FunctionSpacePol, DiagnosisNamesCoulombOnFourJoints) {
+  sim::HiddenEffectOptions o;
+  o.effect = HiddenEffect::kCoulomb;
+  o.joint = 3;
+  o.magnitude = 0.1;
+  o.train_duration = 15.0;
+  o.test_duration = 5.0;
+  o.seed = 2;
+  const auto scenario = sim::MakeHiddenEffectScenario(sim::RandomRobot(4, 7), o);
+  auto fit = [&](const ModelSpec& spec) {
+    auto model = std::make_unique<RobotModel>(spec, 4);
+    EXPECT_EQ(model->feature_map(), nullptr);
+    auto* kernel = const_cast<Kernel*>(model->kernel());
+    KernelHyperparameters kh = KernelHyperparameters::Defaults(*kernel, 4);
+    Hyperparameters h = model->DefaultHyperparameters(scenario.train.Y);
+    kh.log_output_scale = h.log_output_scale;
+    // Every third row for the evidence: O(m^3) per evaluation.
+    const int rows = static_cast<int>(scenario.train.X.rows()) / 3;
+    Matrix Xs(rows, scenario.train.X.cols()), Ys(rows, 4);
+    for (int i = 0; i < rows; ++i) {
+      Xs.row(i) = scenario.train.X.row(3 * i);
+      Ys.row(i) = scenario.train.Y.row(3 * i);
+    }
+    MaximumLikelihoodOptions ml;
+    ml.max_iterations = 60;
+    EXPECT_TRUE(FitKernelHyperparameters(*kernel, Xs, Ys, ml, &kh).usable());
+    kernel->set_parameters(kh.kernel_parameters);
+    h.log_noise_std = kh.log_noise_std;
+    h.log_output_scale = kh.log_output_scale;
+    EXPECT_EQ(model->Fit(scenario.train.X, scenario.train.Y, h), Status::kOk);
+    return model;
+  };
+  const ModelSpec base = ParseModelSpec("pol");
+  const auto model = fit(base);
+  DiagnosisOptions options;
+  options.nystrom_features = 300;
+  const Diagnosis d = Diagnose(*model, scenario.train.X, scenario.train.Y, scenario.train.t,
+                               options);
+  std::printf("%s\n%s", scenario.description.c_str(), ToJson(d).c_str());
+  EXPECT_NE(d.features.find("Nystrom"), std::string::npos) << d.features;
+  ASSERT_FALSE(d.suggestions.empty());
+  EXPECT_EQ(d.suggestions.front().effect, "coulomb");
+  EXPECT_EQ(d.suggestions.front().joint, 3);
+
+  ModelSpec fixed = base;
+  fixed.effects.push_back(EffectSpec{"coulomb", {3}, d.suggestions.front().params});
+  const auto better = fit(fixed);
+  Matrix before, after;
+  model->PredictRows(scenario.test.X, &before);
+  better->PredictRows(scenario.test.X, &after);
+  const double rms_before = Rms(before.col(2), scenario.test.Y.col(2));
+  const double rms_after = Rms(after.col(2), scenario.test.Y.col(2));
+  std::printf("test RMS of joint 3: %.4f -> %.4f\n", rms_before, rms_after);
+  EXPECT_LT(rms_after, 0.7 * rms_before);
 }
 
 }  // namespace

@@ -258,10 +258,10 @@ void FitModel(const RobotData& data, const FitSettings& settings, const Progress
     case HyperMethod::kCrossValidation:
       if (kernel_model) {
         throw UsageError(
-            "--hyper cv: cross-validation needs a feature-map model (pol or "
-            "motor); '" +
-            ToString(model->spec()) +
-            "' has no finite feature map (use --hyper ml or --hyper fixed)");
+            "--hyper cv: cross-validation needs a model with an explicit feature map (motor, "
+            "or pol up to 3 joints); '" +
+            ToString(model->spec()) + "' for " + std::to_string(model->num_joints()) +
+            " joints runs in function space (use --hyper ml or --hyper fixed)");
       }
       FitFeatureMapByCrossValidation(X, Y, settings, progress, model, &h, info);
       break;

@@ -17,7 +17,7 @@ class DiagnoseCommand : public Command {
   CLI::App* Register(CLI::App* app) override {
     CLI::App* cmd = app->add_subcommand(
         "diagnose", "Find the physical effects a model is missing, from its errors on data");
-    cmd->add_option("--model", model_, "Model file written by 'structgp fit' (pol or motor base)")
+    cmd->add_option("--model", model_, "Model file written by 'structgp fit'")
         ->required();
     cmd->add_option("--data", data_,
                     "Data in time order: CSV with q, qd, qdd and tau columns, and t to try "
@@ -31,6 +31,11 @@ class DiagnoseCommand : public Command {
     cmd->add_option("--min-evidence", options_.min_log_evidence_gain,
                     "Minimum gain in log evidence (nats) for a suggestion")
         ->check(CLI::Range(0.0, 1e9))
+        ->capture_default_str();
+    cmd->add_option("--nystrom", options_.nystrom_features,
+                    "Function-space models (rbf, rbfs, pol from 4 joints): Nystrom features of "
+                    "the model's kernel the candidates are scored against")
+        ->check(CLI::Range(1, 100000))
         ->capture_default_str();
     cmd->footer(
         "Every candidate effect (viscous, coulomb, stribeck, offset, cogging, spring, drift)\n"
@@ -46,12 +51,6 @@ class DiagnoseCommand : public Command {
     CheckOutputPath("--json", json_);
     if (!report_.empty()) CheckOutputPath("--report", report_);
     const RobotModel model = LoadModel(model_);
-    if (model.feature_map() == nullptr || model.gp().weight_space() == nullptr) {
-      throw UsageError("--model '" + model_ +
-                       "': diagnose needs a pol or motor model in "
-                       "weight-space form; this one is " +
-                       ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) + " form");
-    }
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);
     Diagnosis diagnosis;

@@ -12,6 +12,7 @@
 #include "structgp/core/validate.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
+#include "structgp/feature/nystrom_feature_map.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/hyper/hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"
@@ -161,9 +162,8 @@ Augmented Augment(const BaseFit& base, const Matrix& G, const Matrix& cross, con
 
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options) {
-  if (!model.feature_map() || !model.fitted()) {
-    throw std::invalid_argument(
-        "Diagnose: needs a fitted model with a feature map (base pol or motor)");
+  if (!model.fitted() || (!model.feature_map() && !model.kernel())) {
+    throw std::invalid_argument("Diagnose: needs a fitted model");
   }
   const int N = model.num_joints();
   const int m = static_cast<int>(X.rows());
@@ -180,7 +180,30 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
                                 "-fold blocked cross-validation, got " + std::to_string(m));
   }
 
+  // The features the candidates are scored against: the model's own map, or for a model in
+  // function space (rbf, rbfs, pol beyond its explicit map) Nystrom features of its kernel
+  // on inducing states chosen among these rows.
+  std::shared_ptr<const FeatureMap> base_map = model.feature_map();
+  Hyperparameters base_hyper = model.hyperparameters();
   Diagnosis out;
+  if (base_map) {
+    out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) + ")";
+  } else {
+    if (options.nystrom_features < 1) {
+      throw std::invalid_argument("Diagnose: nystrom_features must be >= 1, got " +
+                                  std::to_string(options.nystrom_features));
+    }
+    const Matrix Z = SelectInducingStates(*model.kernel(), X,
+                                          std::min(options.nystrom_features, m / 2));
+    base_map = std::make_shared<NystromFeatureMap>(*model.kernel(), Z);
+    Hyperparameters h = Hyperparameters::Defaults(*base_map, N);
+    h.log_noise_std = base_hyper.log_noise_std;
+    h.log_output_scale = base_hyper.log_output_scale;
+    base_hyper = h;
+    out.features = "Nystrom features of the model's kernel on " + std::to_string(Z.rows()) +
+                   " inducing states chosen among the rows (D = " +
+                   std::to_string(base_map->dim()) + ")";
+  }
   out.num_samples = m;
   out.model = ToString(model.spec());
   if (!model.spec().effects.empty()) out.model += " + " + ToString(model.spec().effects);
@@ -231,11 +254,11 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   const double span = t.size() ? std::max(t.maxCoeff() - t0, 1e-9) : 1.0;
 
   Matrix Phi;
-  model.feature_map()->EvaluateRows(X, &Phi);
+  base_map->EvaluateRows(X, &Phi);
   Matrix refit_residual;
   {
-    const Hyperparameters& h = model.hyperparameters();
-    WeightSpaceGP refit(PriorVariance(*model.feature_map(), h), h.noise_variance(), N,
+    const Hyperparameters& h = base_hyper;
+    WeightSpaceGP refit(PriorVariance(*base_map, h), h.noise_variance(), N,
                         h.output_scales());
     if (refit.Fit(Phi, Y) != Status::kOk) {
       throw std::runtime_error("Diagnose: the model could not be refitted on these data "
@@ -246,7 +269,7 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
 
   std::vector<Candidate> candidates;
   std::vector<Matrix> blocks;  // candidate columns, in order
-  int next_col = model.feature_map()->dim();
+  int next_col = base_map->dim();
   auto add_candidate = [&](const std::string& name, int joint, EffectParameters params) {
     std::shared_ptr<const Effect> effect = MakeEffect(name, params);
     EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
@@ -315,27 +338,27 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
-  Hyperparameters hyper = model.hyperparameters();
+  Hyperparameters hyper = base_hyper;
   {
-    const int D = model.feature_map()->dim();
+    const int D = base_map->dim();
     SufficientStatistics base_stats(D, N);
     base_stats.gram = G_total.topLeftCorner(D, D);
     base_stats.cross = cross_total.topRows(D);
     base_stats.y_squared = Y.colwise().squaredNorm().transpose();
     base_stats.count = m;
-    WeightSpaceEvidence evidence(model.feature_map(), std::move(base_stats));
+    WeightSpaceEvidence evidence(base_map, std::move(base_stats));
     hyper = ProfileNoiseAndScales(evidence, hyper);
   }
   out.noise_std = hyper.noise_variance() > 0 ? std::sqrt(hyper.noise_variance()) : 0.0;
   Vector lambda(next_col);
-  lambda.head(model.feature_map()->dim()) = PriorVariance(*model.feature_map(), hyper);
+  lambda.head(base_map->dim()) = PriorVariance(*base_map, hyper);
   const double broad = model.options().broad_prior_std;
-  lambda.tail(next_col - model.feature_map()->dim()).setConstant(broad * broad);
+  lambda.tail(next_col - base_map->dim()).setConstant(broad * broad);
   const double s2n = hyper.noise_variance();
   const Vector s2 = hyper.output_scales().cwiseAbs2();
 
   // ---- greedy forward selection -----------------------------------------------------------------
-  Index B(static_cast<size_t>(model.feature_map()->dim()));
+  Index B(static_cast<size_t>(base_map->dim()));
   std::iota(B.begin(), B.end(), 0);
   const int num_fits = options.folds + 1;  // fit 0: all data; fit f + 1: all but fold f
   std::vector<Matrix> Gs(static_cast<size_t>(num_fits)), crosses(static_cast<size_t>(num_fits));
@@ -438,6 +461,7 @@ std::string ToJson(const Diagnosis& d) {
   nlohmann::ordered_json j;
   j["model"] = d.model;
   j["num_samples"] = d.num_samples;
+  j["features"] = d.features;
   j["joints"] = nlohmann::ordered_json::array();
   for (const auto& f : d.joints) {
     nlohmann::ordered_json jf;

@@ -374,6 +374,7 @@ std::string ModelFileText(const RobotModel& model) {
   options["form"] = ToString(model.options().form);
   options["friction_width"] = model.options().friction_width;
   options["broad_prior_std"] = model.options().broad_prior_std;
+  options["max_explicit_features"] = model.options().max_explicit_features;
   doc["options"] = options;
   doc["num_joints"] = model.num_joints();
   doc["uses_time"] = model.uses_time();
@@ -504,6 +505,11 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
   if (!form_ok) r.FailField("options.form", "expected 'auto', 'weight_space' or 'function_space'");
   options.friction_width = r.Number(o, "options", "friction_width");
   options.broad_prior_std = r.Number(o, "options", "broad_prior_std");
+  // Files written before this option existed used the explicit pol map at every size.
+  options.max_explicit_features =
+      o.contains("max_explicit_features")
+          ? static_cast<int>(r.Integer(o, "options", "max_explicit_features", 1, 1 << 30))
+          : (1 << 30);
   const int num_joints = static_cast<int>(r.Integer(doc, "", "num_joints", 1, 1000));
   const bool uses_time = r.Boolean(doc, "", "uses_time");
   const int input_dim = static_cast<int>(r.Integer(doc, "", "input_dim", 1, 1 << 20));

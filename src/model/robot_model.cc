@@ -11,6 +11,7 @@
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 
@@ -34,13 +35,22 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
       }
     }
   }
-  if (spec_.base == BaseModel::kPol || spec_.base == BaseModel::kMotor) {
+  if (options_.max_explicit_features < 1) {
+    throw std::invalid_argument("RobotModelOptions.max_explicit_features must be >= 1, got " +
+                                std::to_string(options_.max_explicit_features));
+  }
+  const bool pol_by_formula = spec_.base == BaseModel::kPol &&
+                              options_.form != Form::kWeightSpace &&
+                              (num_joints_ > kMaxPolJoints ||
+                               PolFeatureDimension(num_joints_) > options_.max_explicit_features);
+  if (spec_.base == BaseModel::kMotor || (spec_.base == BaseModel::kPol && !pol_by_formula)) {
     BuildFeatureMap();
   } else {
     if (uses_time_) {
-      throw std::invalid_argument("model '" + ToString(spec_) +
-                                  "': time-dependent effects (drift) need a feature-map base "
-                                  "(pol or motor)");
+      throw std::invalid_argument(
+          "model '" + ToString(spec_) + "' for " + std::to_string(num_joints_) +
+          " joints runs in function space, and time-dependent effects (drift) need an "
+          "explicit feature map (motor, or pol up to max_explicit_features)");
     }
     BuildKernel();
   }
@@ -112,7 +122,9 @@ void RobotModel::BuildFeatureMap() {
 void RobotModel::BuildKernel() {
   const int N = num_joints_;
   std::unique_ptr<Kernel> base;
-  if (spec_.base == BaseModel::kRbf) {
+  if (spec_.base == BaseModel::kPol) {
+    base = std::make_unique<PolFormulaKernel>(N);
+  } else if (spec_.base == BaseModel::kRbf) {
     base = std::make_unique<RbfKernel>(3 * N, /*ard=*/true);
   } else {
     base = std::make_unique<RbfsKernel>(N, /*ard=*/true);

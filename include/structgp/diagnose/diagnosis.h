@@ -46,6 +46,10 @@ struct DiagnosisOptions {
   /// Search range of the cogging period, rad.
   double min_cogging_period = 0.02;
   double max_cogging_period = 3.0;
+  /// Models in function space (rbf, rbfs, pol beyond its explicit map): the candidates are
+  /// scored against this many Nystrom features of the model's kernel (at most half the rows),
+  /// inducing states chosen among the rows by greedy residual variance.
+  int nystrom_features = 512;
 };
 
 /// A variable along which a joint's residual concentrates.
@@ -85,15 +89,18 @@ struct Diagnosis {
   std::vector<Suggestion> suggestions;  ///< highest score first
   int num_samples = 0;
   std::string model;  ///< model spec and effects in use
+  /// What the candidates were scored against: the model's feature map, or Nystrom features
+  /// of its kernel.
+  std::string features;
   /// Relative noise level sigma_n found by evidence on these data (noise of joint j is
   /// noise_std times the joint's output scale).
   double noise_std = 0;
 };
 
-/// Diagnoses a fitted feature-map model (pol or motor base) on data X (m x model.input_dim()),
+/// Diagnoses a fitted model on data X (m x model.input_dim()),
 /// Y (m x N) and times t (size m, or empty when the data have none: drift is then not tried).
 /// Rows must be in time order (the folds are contiguous). Throws std::invalid_argument on bad
-/// sizes, NaN/Inf, too few rows for the folds, or a model without a feature map.
+/// sizes, NaN/Inf, too few rows for the folds, or a model that is not fitted.
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options = {});
 

@@ -12,7 +12,11 @@
 /// physical components — pol's inertial M(q)qdd, Coriolis/centrifugal C(q,qd)qd and gravity
 /// G(q) blocks, friction, and each effect — each with its own posterior variance.
 /// rbf and rbfs have no finite map: they run in function space, with friction and effects
-/// added as a feature-map kernel, and give no component split.
+/// added as a feature-map kernel, and give no component split. pol runs the same way, with
+/// k_pol evaluated by its formula (PolFormulaKernel, O(N) per pair), when its explicit map
+/// would be wider than RobotModelOptions::max_explicit_features (from N = 4 joints by
+/// default: D = 8,830 at N = 4, 422,603 at N = 6); effects that use the time then need the
+/// explicit map.
 
 #include <memory>
 #include <string>
@@ -39,6 +43,10 @@ struct RobotModelOptions {
   /// Large data sets: threads of the weight-space accumulation and the row limit of the
   /// function-space form (see BatchFitOptions; gp().subsampled() tells when it applied).
   BatchFitOptions batch;
+  /// pol: the explicit feature map is used while its dimension D is at most this (or when
+  /// form is Form::kWeightSpace); beyond, the model runs in function space on k_pol's
+  /// formula. D = 12, 133, 1151, 8830 for N = 1..4.
+  int max_explicit_features = 2048;
 };
 
 /// One physical part of a prediction, for one output.
@@ -65,7 +73,8 @@ class RobotModel {
   const std::shared_ptr<const FeatureMap>& feature_map() const { return map_; }
   /// Feature-map hyper-parameters in use (feature-map bases only).
   const Hyperparameters& hyperparameters() const { return hyper_; }
-  /// The kernel of rbf/rbfs models (null for feature-map bases).
+  /// The kernel of rbf/rbfs models, and of pol models beyond max_explicit_features (null
+  /// for models with a feature map).
   const Kernel* kernel() const { return kernel_.get(); }
 
   /// Default hyper-parameters for torques Y (m x N): output scales from the torque spread,
