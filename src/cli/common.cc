@@ -148,7 +148,7 @@ void FitKernelByEvidence(const Matrix& X, const Matrix& Y, const FitSettings& se
   if (rows < X.rows()) {
     info->notes.push_back(
         Format("kernel hyper-parameters fitted on %d evenly spaced rows "
-               "(--ml-max-rows); the model uses all %d",
+               "(--ml-max-rows) of %d",
                rows, static_cast<int>(X.rows())));
   }
 }
@@ -279,8 +279,8 @@ void FitModel(const RobotData& data, const FitSettings& settings, const Progress
   if (model->gp().subsampled()) {
     const std::string note = Format(
         "the function-space form was fitted on %d evenly spaced rows of %d (--max-kernel-rows; "
-        "its fit costs O(m^3) time and O(m^2) memory); a feature-map model (pol, motor) learns "
-        "from every row",
+        "its fit costs O(m^3) time and O(m^2) memory); a model with an explicit feature map "
+        "(motor, pol up to 3 joints) learns from every row",
         static_cast<int>(model->gp().fit_rows()), static_cast<int>(model->gp().data_rows()));
     progress.Line(note);
     info->notes.push_back(note);
