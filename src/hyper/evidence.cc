@@ -40,13 +40,23 @@ Status WeightSpaceEvidence::Evaluate(const Hyperparameters& hyper, double* lml,
                                      Hyperparameters* gradient) const {
   hyper.Validate(*map_, stats_.num_outputs());
   const Vector lambda = PriorVariance(*map_, hyper);
+  // Hyper-parameters far out (a shape parameter whose prior variances underflow, a noise of
+  // 1e-300) give a prior the model cannot represent (weight_space_gp.h): an ordinary failed
+  // evaluation, so that an optimiser backs off.
+  const double noise = hyper.noise_variance();
+  if (!lambda.allFinite() || !(noise > 0.0) ||
+      !(lambda.maxCoeff() / noise <= kMaxPriorToNoiseRatio) ||
+      !(lambda.minCoeff() / noise >= 1.0 / kMaxPriorToNoiseRatio)) {
+    return Status::kNotPositiveDefinite;
+  }
   if (!model_) {
     model_ = std::make_unique<WeightSpaceGP>(lambda, hyper.noise_variance(),
                                              stats_.num_outputs(), hyper.output_scales());
   } else {
     model_->Reset(lambda, hyper.noise_variance(), hyper.output_scales());
   }
-  const Status status = model_->Fit(stats_);
+  // No jitter: the evidence of a jittered model is not the evidence of these hyper-parameters.
+  const Status status = model_->Fit(stats_, FitJitter::kNone);
   if (status != Status::kOk) return status;
   EvidenceGradient per_feature;
   const double value = model_->LogMarginalLikelihood(gradient ? &per_feature : nullptr);

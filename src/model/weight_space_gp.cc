@@ -12,6 +12,9 @@ namespace structgp {
 namespace {
 
 constexpr double kLog2Pi = 1.8378770664093453;
+// Relative slack of FromState's check diag(S S^T) <= Lambda_e / sigma_n^2: far above the
+// rounding of any sequence of updates, far below any damage worth detecting.
+constexpr double kStateVarianceSlack = 1e-6;
 
 Vector ScalesOrOnes(const Vector& output_scales, int num_outputs) {
   return output_scales.size() == 0 ? Vector::Ones(num_outputs) : output_scales;
@@ -31,6 +34,14 @@ void ValidatePrior(const Vector& prior_variance, double noise_variance, int num_
     throw std::invalid_argument("WeightSpaceGP: prior_variance must be > 0 everywhere");
   }
   RequireInRange("WeightSpaceGP noise_variance", noise_variance, 0.0, HUGE_VAL);
+  const double max_ratio = prior_variance.maxCoeff() / noise_variance;
+  const double min_ratio = prior_variance.minCoeff() / noise_variance;
+  if (!(max_ratio <= kMaxPriorToNoiseRatio && min_ratio >= 1.0 / kMaxPriorToNoiseRatio)) {
+    throw std::invalid_argument(
+        "WeightSpaceGP: prior_variance / noise_variance must lie in [1e-200, 1e200], got " +
+        std::to_string(min_ratio) + " .. " + std::to_string(max_ratio) +
+        " (noise_variance " + std::to_string(noise_variance) + "); rescale the prior or the noise");
+  }
   if (output_scales.size() != 0) {
     RequireSize("WeightSpaceGP output_scales", output_scales.size(), num_outputs);
     RequireFinite("WeightSpaceGP output_scales", output_scales);
@@ -79,6 +90,10 @@ void WeightSpaceGP::Reset(const Vector& prior_variance, double noise_variance,
   log_prior_broadening_ = 0.0;
   sample_count_ = 0.0;
   num_samples_ = 0;
+  fit_jitter_ = 0.0;
+  // S is diagonal here: (S S^T)_kk = Lambda_k / sigma_n^2 exactly.
+  log_variance_headroom_ =
+      std::log(kMaxPriorToNoiseRatio) - std::log(prior_variance_.maxCoeff() / noise_variance_);
 }
 
 Status WeightSpaceGP::Fit(const ConstMatrixRef& Phi, const ConstMatrixRef& Y) {
@@ -87,16 +102,32 @@ Status WeightSpaceGP::Fit(const ConstMatrixRef& Phi, const ConstMatrixRef& Y) {
   return Fit(stats);
 }
 
-Status WeightSpaceGP::Fit(const SufficientStatistics& stats) {
+Status WeightSpaceGP::Fit(const SufficientStatistics& stats, FitJitter jitter_policy) {
   RequireSize("WeightSpaceGP::Fit statistics features", stats.num_features(), num_features());
   RequireSize("WeightSpaceGP::Fit statistics outputs", stats.num_outputs(), num_outputs());
   const Eigen::Index D = num_features();
   Matrix A = stats.gram.triangularView<Eigen::Lower>();
   A.diagonal() += noise_variance_ * prior_variance_.cwiseInverse();
-  Eigen::LLT<Matrix, Eigen::Lower> llt(A);
-  if (llt.info() != Eigen::Success || !llt.matrixLLT().diagonal().allFinite() ||
-      (llt.matrixLLT().diagonal().array() <= 0.0).any()) {
-    return Status::kNotPositiveDefinite;
+  // The jitter ladder of the header: accept the factor when every pivot keeps a fraction
+  // kMinPivotRatio of its own diagonal entry, else factorise A + delta diag(A), delta growing.
+  const Vector diag = A.diagonal();
+  if (!diag.allFinite() || !stats.cross.allFinite()) return Status::kNotPositiveDefinite;
+  Eigen::LLT<Matrix, Eigen::Lower> llt;
+  double jitter = 0.0;
+  for (int step = 0;; ++step) {
+    llt.compute(A);
+    if (llt.info() == Eigen::Success) {
+      const auto pivots = llt.matrixLLT().diagonal();
+      if (pivots.allFinite() &&
+          (pivots.array().square() >= kMinPivotRatio * diag.array()).all()) {
+        break;
+      }
+    }
+    if (step == kMaxJitterSteps || jitter_policy == FitJitter::kNone) {
+      return Status::kNotPositiveDefinite;
+    }
+    jitter = step == 0 ? kJitterFirst : jitter * kJitterGrowth;
+    A.diagonal() = (1.0 + jitter) * diag;
   }
   // S = L^{-T}: invert the triangular factor, then transpose into the upper triangle.
   Matrix l_inv = Matrix::Identity(D, D);
@@ -113,7 +144,29 @@ Status WeightSpaceGP::Fit(const SufficientStatistics& stats) {
   log_prior_broadening_ = 0.0;
   sample_count_ = stats.count;
   num_samples_ = static_cast<long>(stats.count);
+  fit_jitter_ = jitter;
+  RefreshHeadroom();
   return Status::kOk;
+}
+
+void WeightSpaceGP::RefreshHeadroom() {
+  Commit(nullptr, nullptr, nullptr, nullptr);
+  const Eigen::Index D = num_features();
+  // Row norms of the upper triangle, column by column (contiguous), into the scratch vector.
+  work_h_.setZero();
+  for (Eigen::Index j = 0; j < D; ++j) {
+    work_h_.head(j + 1) += factor_.col(j).head(j + 1).cwiseAbs2();
+  }
+  log_variance_headroom_ = std::log(kMaxPriorToNoiseRatio) - std::log(work_h_.maxCoeff());
+}
+
+bool WeightSpaceGP::TakeHeadroom(double cost) {
+  if (cost > log_variance_headroom_) {
+    RefreshHeadroom();
+    if (!(cost <= log_variance_headroom_)) return false;
+  }
+  log_variance_headroom_ -= cost;
+  return true;
 }
 
 bool WeightSpaceGP::InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) const {
@@ -170,12 +223,17 @@ Status WeightSpaceGP::Update(const ConstVectorRef& phi, const ConstVectorRef& y,
       !(weight > 0.0 && std::isfinite(weight))) {
     return Status::kInvalidInput;
   }
+  // A' = lambda A + v phi phi^T >= lambda A: no variance grows by more than 1/lambda.
+  if (forgetting != 1.0 && !TakeHeadroom(-std::log(forgetting))) {
+    return Status::kNotPositiveDefinite;
+  }
   Commit(phi.data(), nullptr, work_f_.data(), nullptr);
   const double scale = forgetting == 1.0 ? 1.0 : 1.0 / std::sqrt(forgetting);
   work_f_ *= scale;
   const double alpha = 1.0 / weight + work_f_.squaredNorm();
   if (!std::isfinite(alpha)) return Status::kNotPositiveDefinite;
   work_err_.noalias() = y - weights_.transpose() * phi;
+  if (!work_err_.allFinite()) return Status::kInvalidInput;
   Stage(1.0 / weight, scale, alpha);
   Commit(nullptr, nullptr, nullptr, nullptr);
   Account(y, forgetting, weight, +1.0);
@@ -191,7 +249,12 @@ Status WeightSpaceGP::Downdate(const ConstVectorRef& phi, const ConstVectorRef& 
   // Removing the sample keeps A positive definite iff 1 - weight * phi^T A^{-1} phi > 0.
   const double margin = 1.0 - weight * work_f_.squaredNorm();
   if (!(margin > kMinDowndateMargin)) return Status::kNotPositiveDefinite;
+  // A'^{-1} = A^{-1} + v g g^T / margin with g = A^{-1} phi, and g_k^2 <= (A^{-1})_kk phi^T A^{-1}
+  // phi: no variance grows by more than 1 / margin. (Taking headroom may refresh it, which
+  // reuses work_h_ only: work_f_ is kept.)
+  if (!TakeHeadroom(-std::log(margin))) return Status::kNotPositiveDefinite;
   work_err_.noalias() = y - weights_.transpose() * phi;
+  if (!work_err_.allFinite()) return Status::kInvalidInput;
   Stage(-1.0 / weight, 1.0, -margin / weight);  // alpha = -1/weight + f^T f
   Commit(nullptr, nullptr, nullptr, nullptr);
   Account(y, 1.0, weight, -1.0);
@@ -204,7 +267,7 @@ Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean) const {
   }
   Commit(nullptr, nullptr, nullptr, nullptr);
   mean.noalias() = weights_.transpose() * phi;
-  return Status::kOk;
+  return mean.allFinite() ? Status::kOk : Status::kInvalidInput;
 }
 
 Status WeightSpaceGP::PredictWithVariance(const ConstVectorRef& phi, VectorRef mean,
@@ -220,7 +283,7 @@ Status WeightSpaceGP::PredictWithVariance(const ConstVectorRef& phi, VectorRef m
   const double quad = work_f_.squaredNorm();  // phi^T A^{-1} phi >= 0 by construction
   latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
   noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
-  return Status::kOk;
+  return mean.allFinite() && std::isfinite(quad) ? Status::kOk : Status::kInvalidInput;
 }
 
 Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const ConstVectorRef& y,
@@ -235,6 +298,9 @@ Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const C
       !(forgetting > 0.0 && forgetting <= 1.0)) {
     return Status::kInvalidInput;
   }
+  if (forgetting != 1.0 && !TakeHeadroom(-std::log(forgetting))) {
+    return Status::kNotPositiveDefinite;
+  }
   // One pass: apply the previous step's staged change and project both new vectors.
   Commit(phi_update.data(), phi_predict.data(), work_f_.data(), work_h_.data());
   const double scale = forgetting == 1.0 ? 1.0 : 1.0 / std::sqrt(forgetting);
@@ -245,6 +311,7 @@ Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const C
   const double alpha = 1.0 + work_f_.squaredNorm();
   if (!std::isfinite(alpha)) return Status::kNotPositiveDefinite;
   work_err_.noalias() = y - weights_.transpose() * phi_update;
+  if (!work_err_.allFinite()) return Status::kInvalidInput;
   // With the new sample staged, A'^{-1} = P_s - P_s phi phi^T P_s / alpha (Sherman-Morrison):
   //   mean(phi_p) = W^T phi_p + (h^T f / alpha) e,  phi_p^T A'^{-1} phi_p = h^T h - (h^T f)^2 / alpha.
   const double cross = work_h_.dot(work_f_);
@@ -255,6 +322,7 @@ Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const C
     latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
     noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
   }
+  if (!mean.allFinite() || !std::isfinite(cross)) return Status::kInvalidInput;
   Stage(1.0, scale, alpha);
   Account(y, forgetting, 1.0, +1.0);
   return Status::kOk;
@@ -316,6 +384,23 @@ WeightSpaceGP WeightSpaceGP::FromState(const WeightSpaceGPState& state) {
     throw std::invalid_argument(
         "WeightSpaceGP::FromState: covariance_factor must have a positive diagonal");
   }
+  // A >= sigma_n^2 Lambda_e^{-1}, so the posterior variance of every weight is at most its
+  // prior variance: diag(S S^T)_k <= Lambda_k exp(log_prior_broadening) / sigma_n^2. The slack
+  // covers rounding; a factor that breaks this was not made by a model (a damaged file).
+  if (std::isfinite(state.log_prior_broadening)) {
+    const Vector bound = state.prior_variance * (std::exp(state.log_prior_broadening) /
+                                                 state.noise_variance);
+    const Vector row_norms = state.covariance_factor.rowwise().squaredNorm();
+    for (Eigen::Index k = 0; k < D; ++k) {
+      if (!(row_norms[k] <= bound[k] * (1.0 + kStateVarianceSlack))) {
+        throw std::invalid_argument(
+            "WeightSpaceGP::FromState: covariance_factor row " + std::to_string(k) +
+            " gives a posterior variance above the prior variance (" +
+            std::to_string(row_norms[k]) + " > " + std::to_string(bound[k]) +
+            "); the factor is not one a model can reach");
+      }
+    }
+  }
   for (double v :
        {state.weight_sum, state.log_weight_sum, state.log_prior_broadening, state.sample_count}) {
     if (!std::isfinite(v)) {
@@ -330,6 +415,7 @@ WeightSpaceGP WeightSpaceGP::FromState(const WeightSpaceGPState& state) {
   model.log_prior_broadening_ = state.log_prior_broadening;
   model.sample_count_ = state.sample_count;
   model.num_samples_ = state.num_samples;
+  model.RefreshHeadroom();
   return model;
 }
 

@@ -30,7 +30,9 @@ class WeightSpaceEvidence {
   WeightSpaceEvidence(std::shared_ptr<const FeatureMap> map, SufficientStatistics stats);
 
   /// log p(Y | hyper) into *lml and, when gradient is not null, its derivatives. O(D^3).
-  /// kNotPositiveDefinite when the posterior precision cannot be factorised (outputs untouched).
+  /// kNotPositiveDefinite when the posterior precision cannot be factorised, or when the prior
+  /// variances or noise are outside what WeightSpaceGP represents (kMaxPriorToNoiseRatio; e.g.
+  /// an extreme shape parameter): outputs untouched, no exception.
   Status Evaluate(const Hyperparameters& hyper, double* lml,
                   Hyperparameters* gradient = nullptr) const;
 

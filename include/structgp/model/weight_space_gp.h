@@ -29,6 +29,34 @@
 /// prior variance Lambda / lambda^n; tests check this equivalence. Directions that the data
 /// stop exciting therefore grow in variance, as in every exponentially forgetting estimator.
 ///
+/// Ill-conditioning policy (see docs/reliability.md). Every numerical trouble ends in a Status
+/// the caller sees, never in a NaN inside the model:
+/// - Construction and Reset require every ratio Lambda_k / sigma_n^2 to lie in
+///   [1 / kMaxPriorToNoiseRatio, kMaxPriorToNoiseRatio] (std::invalid_argument otherwise), so
+///   that the initial factor S = diag(sqrt(Lambda / sigma_n^2)) is finite and positive.
+/// - Fit accepts the Cholesky factor L of A only when every pivot satisfies
+///   L_kk^2 >= kMinPivotRatio * A_kk, i.e. no feature direction is, to working precision, a
+///   combination of the earlier ones (duplicate samples, collinear features or a tiny noise can
+///   make A singular). The test is invariant to the scaling of the features. Otherwise Fit
+///   factorises A + delta diag(A) (a relative jitter) along a bounded ladder:
+///   delta = kJitterFirst, times kJitterGrowth at each step, at most kMaxJitterSteps steps;
+///   fit_jitter() records the delta used (0 when none was needed). When the last step fails
+///   too, Fit returns kNotPositiveDefinite and leaves the model unchanged.
+/// - Update and UpdateAndPredict cannot lose definiteness (A only gains v phi phi^T), but
+///   forgetting multiplies the variance of directions the data do not excite (zero velocities
+///   under friction features, say) by 1/lambda per step, without bound. A forgetting step
+///   (or a downdate) that could make the largest weight variance in units of sigma_n^2,
+///   max_k (S S^T)_kk, exceed kMaxPriorToNoiseRatio is refused with kNotPositiveDefinite (model
+///   unchanged): the caller can add the sample without forgetting (lambda = 1) or Reset. The
+///   test is O(1) per step: the model keeps a lower bound of the remaining headroom (a step
+///   with forgetting lambda multiplies every variance by at most 1/lambda, a downdate by at most
+///   1/margin) and recomputes it exactly, O(D^2) without allocating, only when the bound runs
+///   out; data that excite every direction therefore never hit it. A sample whose prediction
+///   error overflows (huge phi) is refused with kInvalidInput. No rank-one update adds jitter:
+///   the model stays the exact posterior.
+/// - Predict and PredictWithVariance return kInvalidInput when a result is not finite (only for
+///   inputs of absurd magnitude); variances are never negative.
+///
 /// Real-time contract: after construction, Update, Downdate, Predict and PredictWithVariance
 /// allocate no memory, take no lock and throw no exception; bad input returns kInvalidInput
 /// and leaves the model unchanged. A model is not safe for concurrent calls, including const
@@ -45,7 +73,32 @@ namespace structgp {
 /// be indefinite; the downdate is refused instead.
 inline constexpr double kMinDowndateMargin = 1e-10;
 
+/// A batch factorisation is accepted when every pivot satisfies L_kk^2 >= kMinPivotRatio A_kk:
+/// L_kk^2 / A_kk is the part of feature k's precision not explained by the features before it;
+/// below ~1e-13 (a few hundred eps) it is rounding error and the factor would be mostly noise.
+inline constexpr double kMinPivotRatio = 1e-13;
+/// First relative jitter of Fit's ladder (A + delta diag(A)): a hundred times the pivot floor,
+/// so that the first step normally succeeds.
+inline constexpr double kJitterFirst = 1e-11;
+/// Factor between consecutive jitters of the ladder.
+inline constexpr double kJitterGrowth = 100.0;
+/// Number of jitter steps before Fit gives up: the largest jitter is
+/// kJitterFirst * kJitterGrowth^(kMaxJitterSteps - 1) = 1e-5 (relative to diag(A)).
+inline constexpr int kMaxJitterSteps = 4;
+/// Largest (and inverse of the smallest) ratio of a prior variance to the noise variance,
+/// Lambda_k / sigma_n^2, and largest weight variance in units of sigma_n^2, (S S^T)_kk, that
+/// forgetting may reach. It keeps the entries of S far from overflow: squares of 1e100 are
+/// still finite.
+inline constexpr double kMaxPriorToNoiseRatio = 1e200;
+
 /// Derivatives of the log marginal likelihood.
+/// Whether WeightSpaceGP::Fit may add jitter when the precision is singular to working
+/// precision (the ladder of the policy above).
+enum class FitJitter {
+  kLadder,  ///< try the bounded jitter ladder before giving up (fitting a model)
+  kNone,    ///< give up at once (evidence for hyper-parameter search: an exact value or none)
+};
+
 struct EvidenceGradient {
   /// d log p(Y) / d log Lambda_k, one per feature (size D). A block scale or a shape
   /// parameter follows by the chain rule (see hyper/evidence.h).
@@ -63,8 +116,9 @@ struct EvidenceGradient {
 ///
 /// Invariants (checked by WeightSpaceGP::FromState): prior_variance (D) > 0, noise_variance
 /// > 0, output_scales (P) > 0; covariance_factor is D x D, upper-triangular (strictly lower
-/// part exactly zero) with a positive diagonal; weights is D x P; y_squared has P entries;
-/// every value is finite.
+/// part exactly zero) with a positive diagonal, and no posterior variance above the prior one:
+/// diag(S S^T)_k <= Lambda_k exp(log_prior_broadening) / noise_variance (to a relative 1e-6);
+/// weights is D x P; y_squared has P entries; every value is finite.
 struct WeightSpaceGPState {
   Vector prior_variance;              ///< Lambda (D)
   double noise_variance = 0.0;        ///< sigma_n^2
@@ -96,9 +150,11 @@ class WeightSpaceGP {
              const Vector& output_scales = Vector());
 
   /// Batch fit: replaces the posterior by the one given the samples in stats, with the
-  /// current prior. O(D^3). On failure (the precision is numerically not positive definite)
-  /// returns kNotPositiveDefinite and leaves the model unchanged. Throws on size mismatch.
-  Status Fit(const SufficientStatistics& stats);
+  /// current prior. O(D^3). When the precision is singular to working precision, a jitter
+  /// from the bounded ladder above is added to its diagonal (see fit_jitter()); when even the
+  /// largest fails (or at once with FitJitter::kNone), returns kNotPositiveDefinite and leaves
+  /// the model unchanged. Throws on size mismatch.
+  Status Fit(const SufficientStatistics& stats, FitJitter jitter_policy = FitJitter::kLadder);
   /// Batch fit from features Phi (m x D) and targets Y (m x P).
   Status Fit(const ConstMatrixRef& Phi, const ConstMatrixRef& Y);
 
@@ -154,6 +210,10 @@ class WeightSpaceGP {
   /// WeightSpaceGPState.
   static WeightSpaceGP FromState(const WeightSpaceGPState& state);
 
+  /// The relative jitter delta of the last successful Fit, which factorised A + delta diag(A)
+  /// (0 when the factorisation needed none, and after Reset). Updates never add jitter.
+  double fit_jitter() const { return fit_jitter_; }
+
   /// Sum of the weights of the samples in the posterior (m without forgetting).
   double effective_count() const { return weight_sum_; }
   /// Number of samples absorbed since the last Fit/Reset (Fit counts its samples).
@@ -170,6 +230,13 @@ class WeightSpaceGP {
   // Evidence bookkeeping of one added (sign +1) or removed (sign -1) sample.
   void Account(const ConstVectorRef& y, double forgetting, double weight, double sign);
   bool InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) const;
+  // Recomputes log_variance_headroom_ exactly from S (after applying a staged change). O(D^2),
+  // allocation-free (uses work_h_ as scratch).
+  void RefreshHeadroom();
+  // Takes `cost` (the log of the largest factor by which a step may multiply a variance) from
+  // the headroom, refreshing it first when it is short; false (nothing taken) when even the
+  // exact headroom is too small.
+  bool TakeHeadroom(double cost);
 
   Vector prior_variance_;  // Lambda (D)
   double noise_variance_;  // sigma_n^2
@@ -188,6 +255,10 @@ class WeightSpaceGP {
   double log_prior_broadening_ = 0.0;
   double sample_count_ = 0.0;
   long num_samples_ = 0;
+  double fit_jitter_ = 0.0;
+  // A lower bound of log(kMaxPriorToNoiseRatio) - log(max_k (S S^T)_kk): how much the largest
+  // weight variance may still grow before forgetting is refused (see the policy above).
+  double log_variance_headroom_ = 0.0;
 
   // The staged change: Carlson coefficients, 1 / alpha and the prediction error.
   mutable bool staged_ = false;

@@ -1,0 +1,62 @@
+// Inputs found by the libFuzzer targets of fuzz/ (docs/reliability.md), kept in tests/data/fuzz/
+// and replayed here with the same guarantees the targets check, so that a finding stays fixed.
+
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "structgp/io/data_error.h"
+#include "structgp/io/model_file.h"
+
+#ifndef STRUCTGP_TEST_DATA_DIR
+#error "STRUCTGP_TEST_DATA_DIR must name tests/data"
+#endif
+
+namespace structgp {
+namespace {
+
+std::string ReadData(const std::string& name) {
+  const std::string path = std::string(STRUCTGP_TEST_DATA_DIR) + "/fuzz/" + name;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// The text with its checksum recomputed, as fuzz_model_file does before its second parse.
+std::string WithValidChecksum(const std::string& text) {
+  nlohmann::json doc = nlohmann::json::parse(text);
+  doc.erase("checksum");
+  const std::string compact = doc.dump();
+  const uLong crc = crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(compact.data()),
+                          static_cast<uInt>(compact.size()));
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "crc32:%08lx", static_cast<unsigned long>(crc));
+  doc["checksum"] = buffer;
+  return doc.dump();
+}
+
+// fuzz_model_file: one bit flipped in the exponent of an entry of the covariance factor S
+// (-0.0328 became 5.9e306), with a matching checksum. The file loaded, and the variance of any
+// prediction overflowed. Now the loader checks that no posterior variance exceeds the prior one
+// (diag(S S^T) <= Lambda_e / sigma_n^2) and refuses the file.
+TEST(FuzzRegression, ModelFileWithAHugeFactorEntryIsRefused) {
+  const std::string text = WithValidChecksum(ReadData("model_file_factor_entry_1e306.json"));
+  try {
+    ParseModelFile(text, "found.json");
+    FAIL() << "the damaged model file was accepted";
+  } catch (const DataError& e) {
+    EXPECT_EQ(e.file(), "found.json");
+    EXPECT_NE(std::string(e.what()).find("posterior variance above the prior variance"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace structgp
