@@ -25,7 +25,26 @@ std::size_t TotalAllocations() { return g_allocations.load(std::memory_order_rel
 }  // namespace testing
 }  // namespace structgp
 
-#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+// GCC defines __SANITIZE_ADDRESS__ / __SANITIZE_THREAD__; clang answers __has_feature.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define STRUCTGP_UNDER_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define STRUCTGP_UNDER_SANITIZER 1
+#endif
+#endif
+
+namespace structgp {
+namespace testing {
+#ifdef STRUCTGP_UNDER_SANITIZER
+bool CountsEveryAllocation() { return false; }
+#else
+bool CountsEveryAllocation() { return true; }
+#endif
+}  // namespace testing
+}  // namespace structgp
+
+#ifndef STRUCTGP_UNDER_SANITIZER
 // Sanitizers install their own malloc; wrapping it would bypass their checks, so under a
 // sanitizer only operator new is counted.
 extern "C" {

@@ -205,6 +205,7 @@ inline void CheckNoAllocation(const FeatureMap& map, const Matrix& X) {
     for (const Vector& x : xs) map.Evaluate(x, phi);
     count = guard.count();
   }
+  if (!CountsEveryAllocation()) GTEST_SKIP() << kIncompleteCountReason;
   EXPECT_EQ(count, 0u) << "Evaluate allocated " << count << " times for " << xs.size() << " states";
 }
 

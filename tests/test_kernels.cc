@@ -206,8 +206,9 @@ TEST_P(KernelBattery, EvaluateAndGradientDoNotAllocate) {
     kernel->Gradient(a, b, dk);
     sum += dk.sum();
   }
-  EXPECT_EQ(guard.count(), 0u);
   EXPECT_TRUE(std::isfinite(sum));
+  if (!testing::CountsEveryAllocation()) GTEST_SKIP() << testing::kIncompleteCountReason;
+  EXPECT_EQ(guard.count(), 0u);
 }
 
 INSTANTIATE_TEST_SUITE_P(AllKernels, KernelBattery,

@@ -557,13 +557,16 @@ TEST(OnlineLearnerRealTime, ControlPathAllocatesNothing) {
     }
     count = guard.count();
   }
-  EXPECT_EQ(count, 0u) << "allocations on the control path or the learner";
+  if (testing::CountsEveryAllocation()) {
+    EXPECT_EQ(count, 0u) << "allocations on the control path or the learner";
+  }
   const OnlineLearnerSummary s = learner.summary();
   EXPECT_GT(s.updates, before.updates);
   EXPECT_GT(s.downdates, 0);
   EXPECT_EQ(s.rejected_non_finite - before.rejected_non_finite, 340);
   EXPECT_EQ(s.rejected_out_of_range - before.rejected_out_of_range, 340);
   std::cout << s.Report();
+  if (!testing::CountsEveryAllocation()) GTEST_SKIP() << testing::kIncompleteCountReason;
 }
 
 // The control thread runs a fast loop (submit + predict, with and without variance) while the

@@ -20,6 +20,11 @@ TEST(AllocationCounter, CountsEigenAndNewAllocations) {
   std::vector<double> w(100, 1.0);
   volatile double sink = w[3] + v[7];
   (void)sink;
+  if (!testing::CountsEveryAllocation()) {
+    // Under a sanitizer only the std::vector's operator new is seen, not Eigen's malloc.
+    EXPECT_GE(guard.count(), 1u);
+    GTEST_SKIP() << testing::kIncompleteCountReason;
+  }
   EXPECT_GE(guard.count(), 2u);
 }
 
@@ -49,8 +54,9 @@ TEST(WeightSpaceGPRealTime, UpdateDowndatePredictAllocateNothing) {
       ASSERT_EQ(model.Downdate(phi2, y), Status::kOk);
       ASSERT_EQ(model.Update(bad, y), Status::kInvalidInput);
     }
-    EXPECT_EQ(guard.count(), 0u);
+    if (testing::CountsEveryAllocation()) EXPECT_EQ(guard.count(), 0u);
   }
+  if (!testing::CountsEveryAllocation()) GTEST_SKIP() << testing::kIncompleteCountReason;
 }
 
 }  // namespace
