@@ -417,4 +417,28 @@ TEST(Cli, BadInputGivesExitCode2AClearMessageAndNoOutput) {
   }
 }
 
+// Effect specs that parse badly name the character where the problem is; a parameter out of
+// range names the parameter, its range and the value. Exit code 2, nothing written.
+TEST(Cli, BadEffectSpecsNameTheCharacter) {
+  TempDir dir;
+  WriteFile(dir.File("good.csv"), GoodCsv(100));
+  const std::string out = dir.File("model.json");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"coulomb@", "--effects: effect list 'coulomb@', character 8: '@' must be followed by a "
+                   "joint number"},
+      {"cogging@1:period=-1",
+       "--effects: effect list 'cogging@1:period=-1', character 1: effect 'cogging': parameter "
+       "period must be in [1e-06, 1e+06], got -1"},
+      {"viscous,,offset", "character 9"},
+  };
+  for (const auto& [effects, expected] : cases) {
+    SCOPED_TRACE(effects);
+    const Result r = RunCli(dir, {"fit", "--data", dir.File("good.csv"), "--model", "pol",
+                                  "--effects", effects, "--hyper", "fixed", "--out", out});
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_TRUE(Contains(r.err, expected)) << "stderr: " << r.err << "\nexpected: " << expected;
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
 }  // namespace

@@ -447,6 +447,17 @@ TEST_F(ModelFileErrors, InconsistentContentsWithAValidChecksum) {
               "field 'hyperparameters.log_noise_std': expected a number");
 }
 
+// A file of the right format whose "form" names the other form, or no form at all, with a
+// checksum that matches: refused by name, never read as the wrong kind of model.
+TEST_F(ModelFileErrors, WrongFormWithAValidChecksum) {
+  ASSERT_EQ(Json::parse(text_)["form"], "weight_space");
+  ExpectError(Edited([](Json* d) { (*d)["form"] = "function_space"; }),
+              "missing field 'function_space'");
+  ExpectError(Edited([](Json* d) { (*d)["form"] = "kernel"; }),
+              "field 'form': expected 'weight_space' or 'function_space'");
+  ExpectError(Edited([](Json* d) { (*d)["form"] = 1; }), "field 'form'");
+}
+
 TEST(ModelFileSave, IsAtomic) {
   TempDir dir;
   const std::string path = dir.File("model.json");
