@@ -225,18 +225,19 @@ def main():
                                                else "")))
     if args.out:
         tmp = args.out + ".tmp"
-        with open(tmp, "w") as f:
-            f.write("dataset,m,sklearn_mean_nmse,sklearn_fit_seconds,sklearn_predict_seconds,"
-                    "sklearn_cpu_seconds,structgp_mean_nmse,structgp_fit_seconds,"
-                    "structgp_predict_seconds,structgp_cpu_seconds,"
-                    "sklearn_nmse_per_joint,structgp_nmse_per_joint,sklearn_note,structgp_note,"
-                    "sklearn_kernel\n")
+        with open(tmp, "w", newline="") as f:
+            out = csv.writer(f)
+            out.writerow(["dataset", "m", "sklearn_mean_nmse", "sklearn_fit_seconds",
+                          "sklearn_predict_seconds", "sklearn_cpu_seconds", "structgp_mean_nmse",
+                          "structgp_fit_seconds", "structgp_predict_seconds",
+                          "structgp_cpu_seconds", "sklearn_nmse_per_joint",
+                          "structgp_nmse_per_joint", "sklearn_note", "structgp_note",
+                          "sklearn_kernel"])
             for name, m, sk, sg in results:
-                f.write("%s,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%s,%s,\"%s\",\"%s\"\n" %
-                        (name, m, sk[0].mean(), sk[1], sk[2], sk[4], sg[0].mean(), sg[1], sg[2],
-                         sg[4],
-                         ";".join("%.4g" % v for v in sk[0]),
-                         ";".join("%.4g" % v for v in sg[0]), sk[5], sg[3], sk[3]))
+                out.writerow([name, m] + ["%.6g" % v for v in (sk[0].mean(), sk[1], sk[2], sk[4],
+                                                               sg[0].mean(), sg[1], sg[2], sg[4])] +
+                             [";".join("%.4g" % v for v in sk[0]),
+                              ";".join("%.4g" % v for v in sg[0]), sk[5], sg[3], sk[3]])
         os.replace(tmp, args.out)
         print("wrote %s" % args.out)
 
