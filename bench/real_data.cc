@@ -17,7 +17,9 @@
 //               residual variance among the training rows, --nystrom) plus the friction
 //               bases, weight space on every training row;
 //   rbf, rbf+fri, rbfs, rbfs+fri  squared-exponential kernels with one length scale per
-//               input (ARD) [+ friction], kernel form.
+//               input (ARD) [+ friction], kernel form;
+//   pol+rbf+fri k_pol + an ARD rbf + friction, kernel form (only when named in --models;
+//               pol likewise).
 //
 // Targets: every GP model is fitted to the torques standardised per joint (training mean and
 // standard deviation), and its predictions are mapped back; all joints share one kernel and
@@ -31,12 +33,15 @@
 //
 // Reported per model: nMSE per joint = MSE_j / Var(test tau_j) and its mean, the mean of
 // MSE_j / Var(train tau_j), fit time (wall-clock: every hyper-parameter fit, inducing-state
-// selection and the final solve) and prediction time for the whole test set. Also per joint
-// the fraction of test rows whose q or qd lies outside the training range.
+// selection and the final solve), prediction time for the whole test set and the CPU time
+// of both. Also the coverage of the test part: per joint the fraction of test rows whose q,
+// qd or qdd lies outside the training range, and the distance from test configurations to
+// the nearest training configuration.
 //
 //   real_data [--data-dir=DIR] [--datasets=sarcos,ur10] [--models=a,b,...]
-//             [--train-file=F --test-file=F --name=NAME] [--quick] [--check]
-//             [--out=FILE.md] [--csv=FILE.csv]
+//             [--train-file=F --test-file=F --name=NAME] [--quick] [--check] [--verbose]
+//             [--max-log-kernel-parameter=V] [--scale-rates] [--out=FILE.md] [--csv=FILE.csv]
+//   (--help lists every flag; docs/real_data.md has the results.)
 //
 // --quick: a CI-size run on a tiny slice (300 training and 100 test rows, evenly spaced over
 // each part; 10 LBFGS iterations; Nystrom M = 32). Exit status 77 when the data directory has
@@ -44,9 +49,6 @@
 // every model gives a finite error and pol+fri has a mean nMSE (by the training variance)
 // below kCheckMaxNmse on every data set.
 
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
-#include <Eigen/QR>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -60,6 +62,10 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/QR>
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"

@@ -10,7 +10,6 @@
 // Friction per joint: Coulomb 0.3 N m (sign(qd), not smoothed), viscous 0.2 N m s/rad. Noise:
 // standard deviation --noise times the RMS of all noise-free torques, N m.
 
-#include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -18,6 +17,8 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "structgp/io/csv.h"
 #include "structgp/io/data_error.h"
