@@ -58,5 +58,24 @@ TEST(FuzzRegression, ModelFileWithAHugeFactorEntryIsRefused) {
   }
 }
 
+// fuzz_model_file: in a function-space model file (stored points, refitted on load) a copied
+// chunk of base64 turned some targets into values near 1e300, with a matching checksum. The
+// refit overflowed silently and every prediction was NaN with status kOk. Now KernelGP::Fit
+// refuses weights that are not finite (and Add / Predict report overflow by status), so the
+// loader refuses the file.
+TEST(FuzzRegression, FunctionSpaceModelFileWithOverflowingTargetsIsRefused) {
+  const std::string text =
+      WithValidChecksum(ReadData("model_file_function_space_target_overflow.json"));
+  try {
+    ParseModelFile(text, "found.json");
+    FAIL() << "the damaged model file was accepted";
+  } catch (const DataError& e) {
+    EXPECT_EQ(e.file(), "found.json");
+    EXPECT_NE(std::string(e.what()).find("the stored points cannot be refitted"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace structgp

@@ -253,6 +253,8 @@ Status KernelGP::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
     if (!PivotOk(factor(i, i) * factor(i, i), C(i, i))) return Status::kNotPositiveDefinite;
   }
   const Matrix beta = llt.matrixL().solve(Y);
+  // Targets of absurd (finite) magnitude can overflow the solve: refuse rather than store inf.
+  if (!beta.allFinite()) return Status::kNotPositiveDefinite;
 
   Reserve(std::max(m, capacity_));
   for (int i = 0; i < m; ++i) {
@@ -279,15 +281,22 @@ Status KernelGP::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
   if (!PivotOk(d2, diagonal)) return Status::kNotPositiveDefinite;
   const double d = std::sqrt(d2);
 
+  // Row m lies beyond size_ until the end: an early return leaves the model unchanged.
   l[m] = d;
+  if (!NewWeightsOk(l, y, m, d)) return Status::kInvalidInput;
   inputs_.col(m) = x;
   Y_.row(m) = y.transpose();
+  size_ = m + 1;
+  return Status::kOk;
+}
+
+bool KernelGP::NewWeightsOk(const double* l, const ConstVectorRef& y, int m, double d) {
   for (int j = 0; j < num_outputs_; ++j) {
     double* beta_j = beta_.col(j).data();
     beta_j[m] = (y[j] - Dot(l, beta_j, m)) / d;
+    if (!std::isfinite(beta_j[m])) return false;
   }
-  size_ = m + 1;
-  return Status::kOk;
+  return true;
 }
 
 void KernelGP::WritePrediction(const double* p, double kxx, VectorRef mean,
@@ -309,7 +318,7 @@ Status KernelGP::Predict(const ConstVectorRef& x, VectorRef mean) const {
   KernelColumn(x, size_, p);
   PackedForwardSolve(packed_.data(), size_, p);
   for (int j = 0; j < num_outputs_; ++j) mean[j] = Dot(p, beta_.col(j).data(), size_);
-  return Status::kOk;
+  return mean.allFinite() ? Status::kOk : Status::kInvalidInput;
 }
 
 Status KernelGP::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
@@ -322,7 +331,7 @@ Status KernelGP::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
   KernelColumn(x, size_, p);
   PackedForwardSolve(packed_.data(), size_, p);
   WritePrediction(p, kernel_->Evaluate(x, x), mean, latent_variance, noisy_variance);
-  return Status::kOk;
+  return mean.allFinite() && latent_variance.allFinite() ? Status::kOk : Status::kInvalidInput;
 }
 
 Status KernelGP::AddAndPredict(const ConstVectorRef& x, const ConstVectorRef& y,
@@ -352,12 +361,9 @@ Status KernelGP::AddAndPredict(const ConstVectorRef& x, const ConstVectorRef& y,
 
   // Commit the new point (as Add does), then extend p by the new row of L.
   l[m] = d;
+  if (!NewWeightsOk(l, y, m, d)) return Status::kInvalidInput;
   inputs_.col(m) = x;
   Y_.row(m) = y.transpose();
-  for (int j = 0; j < num_outputs_; ++j) {
-    double* beta_j = beta_.col(j).data();
-    beta_j[m] = (y[j] - Dot(l, beta_j, m)) / d;
-  }
   size_ = m + 1;
   p[m] = (kernel_->Evaluate(inputs_.col(m), x_predict) - Dot(l, p, m)) / d;
 

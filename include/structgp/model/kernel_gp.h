@@ -60,19 +60,21 @@ class KernelGP {
 
   /// Batch fit on X (m x input_dim) and Y (m x P); replaces all stored points. Reserves
   /// max(m, capacity()). kNotPositiveDefinite (model unchanged) if K + sigma_n^2 I is not
-  /// numerically positive definite (Eigen's LLT fails or a pivot is below kMinRelativePivot).
-  /// Throws std::invalid_argument on sizes or NaN/Inf (naming the row and column).
+  /// numerically positive definite (Eigen's LLT fails or a pivot is below kMinRelativePivot)
+  /// or when the solve overflows (targets of absurd magnitude). Throws std::invalid_argument on sizes or NaN/Inf (naming the row and column).
   /// O(m^3) time, O(m^2) temporary memory.
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
 
   /// Appends one point (x: input_dim, y: P), O(m^2), allocation-free within capacity.
   /// kInvalidInput on a wrong size or NaN/Inf, kCapacityExceeded when size() == capacity(),
-  /// kNotPositiveDefinite when the new pivot is below kMinRelativePivot; the model is
-  /// unchanged in each case.
+  /// kNotPositiveDefinite when the new pivot is below kMinRelativePivot, kInvalidInput also
+  /// when the new weight overflows (a target of absurd magnitude); the model is unchanged in
+  /// each case.
   Status Add(const ConstVectorRef& x, const ConstVectorRef& y);
 
   /// Predictive mean (size P) at x. O(m^2) (a forward substitution). kInvalidInput (nothing
-  /// written) on a wrong size or NaN/Inf. With no stored points the prior: mean 0.
+  /// written) on a wrong size or NaN/Inf; kInvalidInput also when the result overflows (the
+  /// outputs are then not to be used). With no stored points the prior: mean 0.
   Status Predict(const ConstVectorRef& x, VectorRef mean) const;
   /// Predictive mean, latent and noisy variance (each size P) at x. O(m^2). The latent
   /// variance s_j^2 (k(x,x) - p^T p) is clamped at 0 against rounding; the noisy variance
@@ -109,6 +111,9 @@ class KernelGP {
   Matrix targets() const;
 
  private:
+  // Writes the weights of a new point m (row l of L, pivot d) into beta_; false when one is not
+  // finite (row m is beyond size_, so nothing visible has changed).
+  bool NewWeightsOk(const double* l, const ConstVectorRef& y, int m, double d);
   // Packed row-major lower triangle: row i (i + 1 entries, L(i, 0..i)) starts at i*(i+1)/2,
   // independently of the capacity, so growing the storage keeps the stored rows in place.
   static std::ptrdiff_t RowOffset(int i) { return static_cast<std::ptrdiff_t>(i) * (i + 1) / 2; }
