@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds everything (Release, assertions kept on in the tests),
 # runs the whole test suite, then installs the package into a scratch prefix and builds the
-# downstream consumer in examples/consumer against it.
+# downstream consumer in examples/consumer against it. Then the reliability passes
+# (docs/reliability.md): the whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer
+# (build-asan), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer target
+# for a bounded time (build-fuzz, scripts/run-fuzzers.sh). STRUCTGP_SKIP_SANITIZERS=1 skips
+# these passes (for a quick local run; CI runs them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -22,4 +26,28 @@ cmake -S examples/consumer -B "$build/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Rele
       -DCMAKE_PREFIX_PATH="$(pwd)/$prefix"
 cmake --build "$build/consumer"
 "$build/consumer/structgp_consumer"
+
+if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
+  # ASan + UBSan: every test of the suite (benchmark programs are not tests: left out).
+  asan=${STRUCTGP_ASAN_BUILD_DIR:-build-asan}
+  cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=address \
+        -DSTRUCTGP_BUILD_BENCHMARKS=OFF
+  cmake --build "$asan" -j "$jobs"
+  ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
+  UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
+    ctest --test-dir "$asan" --output-on-failure -j "$jobs"
+
+  # TSan: the tests that run threads (online learner next to a control loop, Nystrom features
+  # built on several threads); only their targets are built.
+  tsan=${STRUCTGP_TSAN_BUILD_DIR:-build-tsan}
+  cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=thread \
+        -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
+  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom
+  TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
+    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom)\.'
+
+  # libFuzzer: each target for a bounded time from its seed corpus.
+  STRUCTGP_FUZZ_BUILD_DIR=${STRUCTGP_FUZZ_BUILD_DIR:-build-fuzz} \
+    bash scripts/run-fuzzers.sh "${STRUCTGP_FUZZ_SECONDS:-30}"
+fi
 echo "run-tests: all tests passed"
