@@ -43,7 +43,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -60,9 +59,10 @@
 #include <tuple>
 #include <vector>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
+#include "bench_program.h"
+#include "kernel_mean.h"
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/friction_feature_map.h"
@@ -81,6 +81,7 @@
 #include "structgp/sim/friction.h"
 #include "structgp/sim/robot.h"
 #include "structgp/sim/trajectory.h"
+#include "timing.h"
 
 namespace structgp {
 namespace {
@@ -93,8 +94,6 @@ constexpr char kDiscussionMarker[] = "<!-- discussion: kept when the file is reg
 constexpr char kSignal[] = "signal";
 // Number of folds of the blocked cross-validation.
 constexpr int kNumFolds = 5;
-// Rows of the validation kernel matrix evaluated at once (8 MB per 2000 x 500 block).
-constexpr int kPredictChunk = 2000;
 
 // ---- command line -----------------------------------------------------------------------
 
@@ -151,85 +150,58 @@ bool StartsWith(const std::string& s, const std::string& prefix) {
 Flags ParseFlags(int argc, char** argv) {
   Flags f;
   bool explicit_n = false, explicit_robots = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const size_t eq = arg.find('=');
-    const std::string name = arg.substr(0, eq);
-    const std::string value = eq == std::string::npos ? "" : arg.substr(eq + 1);
-    auto need_value = [&]() {
-      if (eq == std::string::npos || value.empty()) {
-        throw std::invalid_argument("flag " + name + " needs a value (" + name + "=...)");
-      }
-    };
-    auto as_int = [&]() {
-      need_value();
-      size_t used = 0;
-      const long v = std::stol(value, &used);
-      if (used != value.size()) throw std::invalid_argument("flag " + name + ": not an integer");
-      return static_cast<int>(v);
-    };
-    auto as_double = [&]() {
-      need_value();
-      size_t used = 0;
-      const double v = std::stod(value, &used);
-      if (used != value.size()) throw std::invalid_argument("flag " + name + ": not a number");
-      return v;
-    };
-    if (name == "--help") {
-      throw std::invalid_argument("usage");
-    } else if (name == "--quick") {
+  ForEachFlag(argc, argv, [&](const Flag& flag) {
+    const std::string& name = flag.name();
+    if (name == "--quick") {
       f.quick = true;
     } else if (name == "--check") {
       f.check = true;
     } else if (name == "--no-cv") {
       f.cv = false;
     } else if (name == "--n-min") {
-      f.n_min = as_int();
+      f.n_min = flag.Int();
       explicit_n = true;
     } else if (name == "--n-max") {
-      f.n_max = as_int();
+      f.n_max = flag.Int();
       explicit_n = true;
     } else if (name == "--robots") {
-      f.robots = as_int();
+      f.robots = flag.Int();
       explicit_robots = true;
     } else if (name == "--seed") {
-      need_value();
-      f.seed = std::stoull(value);
+      f.seed = flag.Uint64();
     } else if (name == "--train") {
-      f.train = as_int();
+      f.train = flag.Int();
     } else if (name == "--test") {
-      f.test = as_int();
+      f.test = flag.Int();
     } else if (name == "--noise") {
-      f.noise = as_double();
+      f.noise = flag.Number();
     } else if (name == "--q-range") {
-      f.q_range = as_double();
+      f.q_range = flag.Number();
     } else if (name == "--qd-range") {
-      f.qd_range = as_double();
+      f.qd_range = flag.Number();
     } else if (name == "--qdd-range") {
-      f.qdd_range = as_double();
+      f.qdd_range = flag.Number();
     } else if (name == "--friction-min") {
-      f.friction_min = as_double();
+      f.friction_min = flag.Number();
     } else if (name == "--friction-max") {
-      f.friction_max = as_double();
+      f.friction_max = flag.Number();
     } else if (name == "--threads") {
-      f.threads = as_int();
+      f.threads = flag.Int();
     } else if (name == "--budget-cpu-seconds") {
-      f.budget_cpu_seconds = as_double();
+      f.budget_cpu_seconds = flag.Number();
     } else if (name == "--ml-iterations") {
-      f.ml_iterations = as_int();
+      f.ml_iterations = flag.Int();
     } else if (name == "--fit-seconds") {
-      f.fit_seconds = as_double();
+      f.fit_seconds = flag.Number();
     } else if (name == "--models") {
-      need_value();
-      std::stringstream list(value);
-      for (std::string item; std::getline(list, item, ',');) f.models.push_back(item);
+      f.models = flag.List();
     } else if (name == "--out-dir") {
-      need_value();
-      f.out_dir = value;
+      f.out_dir = flag.Value();
     } else {
-      throw std::invalid_argument("unknown flag '" + arg + "'");
+      return false;
     }
-  }
+    return true;
+  });
   if (f.quick) {
     if (!explicit_n) {
       f.n_min = 1;
@@ -499,23 +471,13 @@ FitResult FitKernelForm(const ModelKind& kind, const Problem& p, const Flags& f,
   result.kernel_parameters = hyper.kernel_parameters;
   result.log_noise_std = hyper.log_noise_std;
   kernel->set_parameters(hyper.kernel_parameters);
-  Matrix K;
-  kernel->Gram(p.X_train, p.X_train, &K);
-  K.diagonal().array() += std::exp(2.0 * hyper.log_noise_std);
-  const Eigen::LLT<Matrix> llt(K);
-  if (llt.info() != Eigen::Success) {
+  Matrix alpha;
+  if (!SolveKernelSystem(*kernel, p.X_train, p.Y_train, std::exp(2.0 * hyper.log_noise_std),
+                         &alpha)) {
     result.note += "; K + sigma_n^2 I not positive definite";
     return result;
   }
-  const Matrix alpha = llt.solve(p.Y_train);
-  Matrix prediction(p.X_test.rows(), n);
-  Matrix k_star;
-  for (Eigen::Index begin = 0; begin < p.X_test.rows(); begin += kPredictChunk) {
-    const Eigen::Index rows = std::min<Eigen::Index>(kPredictChunk, p.X_test.rows() - begin);
-    kernel->Gram(p.X_test.middleRows(begin, rows), p.X_train, &k_star);
-    prediction.middleRows(begin, rows).noalias() = k_star * alpha;
-  }
-  result.rms = MeanRms(p.F_test, prediction);
+  result.rms = MeanRms(p.F_test, KernelMean(*kernel, p.X_train, alpha, p.X_test));
   return result;
 }
 
@@ -537,13 +499,6 @@ struct Record {
   Tuning tuning = Tuning::kMaximumLikelihood;
   FitResult result;
 };
-
-// CPU time of this process, all threads, seconds.
-double CpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
-
-double Seconds(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::vector<Record> RunRobot(int n, int r, const Flags& f) {
   const RobotData data = MakeRobotData(n, r, f);
@@ -1008,8 +963,7 @@ int Run(int argc, char** argv) {
     if (!known) throw std::invalid_argument("--models: unknown model '" + m + "'");
   }
   RunInfo info;
-  info.command = "paper_fig12";
-  for (int i = 1; i < argc; ++i) info.command += std::string(" ") + argv[i];
+  info.command = CommandLine("paper_fig12", argc, argv);
   std::printf("paper_fig12: N = %d..%d, %d robots per N, m = %d, %d validation states, "
               "%d threads, budget %.0f CPU-seconds\n",
               f.n_min, f.n_max, f.robots, f.train, f.test, f.threads, f.budget_cpu_seconds);
@@ -1107,17 +1061,5 @@ int Run(int argc, char** argv) {
 }  // namespace structgp
 
 int main(int argc, char** argv) {
-  try {
-    return structgp::Run(argc, argv);
-  } catch (const std::invalid_argument& e) {
-    if (std::string(e.what()) == "usage") {
-      std::printf("%s", structgp::kUsage);
-      return 0;
-    }
-    std::fprintf(stderr, "paper_fig12: %s\n%s", e.what(), structgp::kUsage);
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "paper_fig12: %s\n", e.what());
-    return 1;
-  }
+  return structgp::RunProgram("paper_fig12", structgp::kUsage, structgp::Run, argc, argv);
 }

@@ -53,7 +53,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <iomanip>
 #include <limits>
@@ -63,10 +62,11 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/QR>
 
+#include "bench_program.h"
+#include "kernel_mean.h"
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/friction_feature_map.h"
@@ -78,7 +78,6 @@
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/io/atomic_file.h"
 #include "structgp/io/csv.h"
-#include "structgp/io/data_error.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
@@ -88,6 +87,7 @@
 #include "structgp/model/robot_model.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
+#include "timing.h"
 
 namespace structgp {
 namespace {
@@ -95,8 +95,6 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Exit status that ctest reads as "skipped" (SKIP_RETURN_CODE).
 constexpr int kExitSkipped = 77;
-// Test rows whose kernel column is evaluated at once (16 MB per 2000 x 1000 block).
-constexpr int kPredictChunk = 2000;
 // --check: largest mean nMSE (MSE_j / Var(train tau_j)) of pol+fri. Predicting the training
 // mean scores about 1 or more; the --quick slices give about 0.14 (SARCOS) and 0.38 (UR10).
 constexpr double kCheckMaxNmse = 0.6;
@@ -145,61 +143,12 @@ const char kUsage[] =
     "  --scale-rates         divide every qd and qdd column by its training std (q as is)\n"
     "  --out=FILE.md --csv=FILE.csv   write the tables (atomically)\n";
 
-std::vector<std::string> SplitList(const std::string& text) {
-  std::vector<std::string> items;
-  std::stringstream list(text);
-  for (std::string item; std::getline(list, item, ',');) {
-    if (!item.empty()) items.push_back(item);
-  }
-  return items;
-}
-
 Flags ParseFlags(int argc, char** argv) {
   Flags f;
   bool explicit_nystrom = false, explicit_iterations = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const size_t eq = arg.find('=');
-    const std::string name = arg.substr(0, eq);
-    const std::string value = eq == std::string::npos ? "" : arg.substr(eq + 1);
-    auto need_value = [&]() {
-      if (eq == std::string::npos || value.empty()) {
-        throw std::invalid_argument("flag " + name + " needs a value (" + name + "=...)");
-      }
-    };
-    auto as_int = [&]() {
-      need_value();
-      size_t used = 0;
-      int v = 0;
-      try {
-        v = std::stoi(value, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != value.size() || v < 0) {
-        throw std::invalid_argument("flag " + name + ": expected a non-negative integer, got '" +
-                                    value + "'");
-      }
-      return v;
-    };
-    auto as_double = [&]() {
-      need_value();
-      size_t used = 0;
-      double v = 0.0;
-      try {
-        v = std::stod(value, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != value.size() || !(v > 0.0)) {
-        throw std::invalid_argument("flag " + name + ": expected a positive number, got '" + value +
-                                    "'");
-      }
-      return v;
-    };
-    if (name == "--help") {
-      throw std::invalid_argument("usage");
-    } else if (name == "--quick") {
+  ForEachFlag(argc, argv, [&](const Flag& flag) {
+    const std::string& name = flag.name();
+    if (name == "--quick") {
       f.quick = true;
     } else if (name == "--check") {
       f.check = true;
@@ -208,27 +157,20 @@ Flags ParseFlags(int argc, char** argv) {
     } else if (name == "--scale-rates") {
       f.scale_rates = true;
     } else if (name == "--data-dir") {
-      need_value();
-      f.data_dir = value;
+      f.data_dir = flag.Value();
     } else if (name == "--datasets") {
-      need_value();
-      f.datasets = SplitList(value);
+      f.datasets = flag.List();
     } else if (name == "--train-file") {
-      need_value();
-      f.train_file = value;
+      f.train_file = flag.Value();
     } else if (name == "--test-file") {
-      need_value();
-      f.test_file = value;
+      f.test_file = flag.Value();
     } else if (name == "--name") {
-      need_value();
-      f.name = value;
+      f.name = flag.Value();
     } else if (name == "--models") {
-      need_value();
-      f.models = SplitList(value);
+      f.models = flag.List();
     } else if (name == "--nystrom") {
-      need_value();
       f.nystrom.clear();
-      for (const std::string& item : SplitList(value)) {
+      for (const std::string& item : flag.List()) {
         size_t used = 0;
         int m = 0;
         try {
@@ -244,33 +186,31 @@ Flags ParseFlags(int argc, char** argv) {
       }
       explicit_nystrom = true;
     } else if (name == "--ml-rows") {
-      f.ml_rows = as_int();
+      f.ml_rows = flag.NonNegativeInt();
     } else if (name == "--kernel-rows") {
-      f.kernel_rows = as_int();
+      f.kernel_rows = flag.NonNegativeInt();
     } else if (name == "--ml-iterations") {
-      f.ml_iterations = as_int();
+      f.ml_iterations = flag.NonNegativeInt();
       explicit_iterations = true;
     } else if (name == "--ml-seconds") {
-      f.ml_seconds = as_double();
+      f.ml_seconds = flag.PositiveNumber();
     } else if (name == "--max-log-kernel-parameter") {
-      need_value();
-      f.max_log_kernel_parameter = std::stod(value);
+      f.max_log_kernel_parameter = flag.Number();
     } else if (name == "--max-weight-space-joints") {
-      f.max_weight_space_joints = as_int();
+      f.max_weight_space_joints = flag.NonNegativeInt();
     } else if (name == "--max-train") {
-      f.max_train = as_int();
+      f.max_train = flag.NonNegativeInt();
     } else if (name == "--max-test") {
-      f.max_test = as_int();
+      f.max_test = flag.NonNegativeInt();
     } else if (name == "--out") {
-      need_value();
-      f.out = value;
+      f.out = flag.Value();
     } else if (name == "--csv") {
-      need_value();
-      f.csv = value;
+      f.csv = flag.Value();
     } else {
-      throw std::invalid_argument("unknown flag '" + arg + "'");
+      return false;
     }
-  }
+    return true;
+  });
   if (f.train_file.empty() != f.test_file.empty()) {
     throw std::invalid_argument("--train-file and --test-file go together");
   }
@@ -417,13 +357,6 @@ struct Result {
   double cpu_seconds = kNaN;
   std::string note;
 };
-
-// CPU time of this process, all threads, seconds.
-double CpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
-
-double Seconds(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Per-joint standardisation of the torques by the training mean and standard deviation.
 struct Standardizer {
@@ -671,27 +604,17 @@ Result FitKernelForm(const Split& s, const std::string& model_name, const Flags&
   r.train_rows = static_cast<int>(index.size());
   r.form = "kernel form";
   if (r.train_rows < s.train.size()) r.form += ", evenly spaced rows";
-  Matrix K;
-  kernel->Gram(X, X, &K);
   // Outputs share the kernel; output j has prior s_j^2 k and noise s_j^2 sigma_n^2, so the
   // posterior mean of every output uses the same (K + sigma_n^2 I)^{-1}.
-  K.diagonal().array() += std::exp(2.0 * hyper.log_noise_std);
-  const Eigen::LLT<Matrix> llt(K);
-  if (llt.info() != Eigen::Success) {
+  Matrix alpha;
+  if (!SolveKernelSystem(*kernel, X, Y, std::exp(2.0 * hyper.log_noise_std), &alpha)) {
     r.note += "; K + sigma_n^2 I not positive definite";
     return r;
   }
-  const Matrix alpha = llt.solve(Y);
   r.fit_seconds = Seconds(start);
 
   const auto predict_start = std::chrono::steady_clock::now();
-  Matrix prediction(s.test.size(), n);
-  Matrix k_star;
-  for (Eigen::Index begin = 0; begin < s.test.X.rows(); begin += kPredictChunk) {
-    const Eigen::Index rows = std::min<Eigen::Index>(kPredictChunk, s.test.X.rows() - begin);
-    kernel->Gram(s.test.X.middleRows(begin, rows), X, &k_star);
-    prediction.middleRows(begin, rows).noalias() = k_star * alpha;
-  }
+  const Matrix prediction = KernelMean(*kernel, X, alpha, s.test.X);
   r.predict_seconds = Seconds(predict_start);
   Score(s, standardizer.Backward(prediction), &r);
   if (keep != nullptr) {
@@ -871,8 +794,7 @@ bool Selected(const Flags& f, const std::string& model) {
 
 int Run(int argc, char** argv) {
   const Flags f = ParseFlags(argc, argv);
-  std::string command = "real_data";
-  for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
+  const std::string command = CommandLine("real_data", argc, argv);
   const std::vector<Split> splits = LoadSplits(f);
   if (splits.empty()) {
     std::printf("real_data: no data set found under %s; skipped\n", f.data_dir.c_str());
@@ -964,20 +886,5 @@ int Run(int argc, char** argv) {
 }  // namespace structgp
 
 int main(int argc, char** argv) {
-  try {
-    return structgp::Run(argc, argv);
-  } catch (const std::invalid_argument& e) {
-    if (std::string(e.what()) == "usage") {
-      std::printf("%s", structgp::kUsage);
-      return 0;
-    }
-    std::fprintf(stderr, "real_data: %s\n%s", e.what(), structgp::kUsage);
-    return 2;
-  } catch (const structgp::DataError& e) {
-    std::fprintf(stderr, "real_data: %s\n", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "real_data: %s\n", e.what());
-    return 1;
-  }
+  return structgp::RunProgram("real_data", structgp::kUsage, structgp::Run, argc, argv);
 }

@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 
+#include "bench_program.h"
 #include "structgp/io/csv.h"
 #include "structgp/io/data_error.h"
 #include "structgp/io/robot_data.h"
@@ -56,34 +57,23 @@ int Run(int argc, char** argv) {
   int train = 5000, test = 2000;
   std::uint64_t seed = 1;
   double noise = 0.01;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const size_t eq = arg.find('=');
-    const std::string name = arg.substr(0, eq);
-    const std::string value = eq == std::string::npos ? "" : arg.substr(eq + 1);
-    if (name == "--help") throw std::invalid_argument("usage");
-    if (eq == std::string::npos || value.empty()) {
-      throw std::invalid_argument("flag " + name + " needs a value (" + name + "=...)");
+  ForEachFlag(argc, argv, [&](const Flag& flag) {
+    const std::string& name = flag.name();
+    if (name == "--out-dir") {
+      out_dir = flag.Value();
+    } else if (name == "--train") {
+      train = flag.Int();
+    } else if (name == "--test") {
+      test = flag.Int();
+    } else if (name == "--seed") {
+      seed = flag.Uint64();
+    } else if (name == "--noise") {
+      noise = flag.Number();
+    } else {
+      return false;
     }
-    try {
-      if (name == "--out-dir") {
-        out_dir = value;
-      } else if (name == "--train") {
-        train = std::stoi(value);
-      } else if (name == "--test") {
-        test = std::stoi(value);
-      } else if (name == "--seed") {
-        seed = std::stoull(value);
-      } else if (name == "--noise") {
-        noise = std::stod(value);
-      } else {
-        throw std::invalid_argument("unknown flag '" + arg + "'");
-      }
-    } catch (const std::logic_error& e) {
-      if (std::string(e.what()).rfind("unknown flag", 0) == 0) throw;
-      throw std::invalid_argument("flag " + name + ": bad value '" + value + "'");
-    }
-  }
+    return true;
+  });
   if (out_dir.empty()) throw std::invalid_argument("--out-dir is required");
   if (train < 1 || test < 1 || !(noise >= 0.0)) {
     throw std::invalid_argument("expected --train >= 1, --test >= 1 and --noise >= 0");
@@ -121,17 +111,5 @@ int Run(int argc, char** argv) {
 }  // namespace structgp
 
 int main(int argc, char** argv) {
-  try {
-    return structgp::Run(argc, argv);
-  } catch (const std::invalid_argument& e) {
-    if (std::string(e.what()) == "usage") {
-      std::printf("%s", structgp::kUsage);
-      return 0;
-    }
-    std::fprintf(stderr, "sim_robot_data: %s\n%s", e.what(), structgp::kUsage);
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sim_robot_data: %s\n", e.what());
-    return 1;
-  }
+  return structgp::RunProgram("sim_robot_data", structgp::kUsage, structgp::Run, argc, argv);
 }
