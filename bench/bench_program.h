@@ -13,7 +13,8 @@
 //     });
 //     ...
 //   }
-//   int main(int argc, char** argv) { return structgp::RunProgram("name", kUsage, Run, argc, argv);
+//   int main(int argc, char** argv) {
+//     return structgp::RunProgram("name", kUsage, Run, argc, argv);
 //   }
 
 #ifndef STRUCTGP_BENCH_BENCH_PROGRAM_H_
