@@ -77,5 +77,32 @@ TEST(FuzzRegression, FunctionSpaceModelFileWithOverflowingTargetsIsRefused) {
   }
 }
 
+// fuzz_model_file: a number too large for a double ('888888888888888888888888e88888') is valid
+// JSON syntax, but the JSON parser throws out_of_range for it, not parse_error; it escaped
+// ParseModelFile as a foreign exception (the program would have stopped with terminate). Now
+// it is a DataError naming the file, the line and column of the number and the reason.
+TEST(FuzzRegression, ModelFileWithANumberBeyondDoubleIsADataError) {
+  const std::string text = ReadData("model_file_number_overflow.json");
+  try {
+    ParseModelFile(text, "found.json");
+    FAIL() << "accepted";
+  } catch (const DataError& e) {
+    EXPECT_EQ(e.file(), "found.json");
+    EXPECT_NE(std::string(e.what()).find("malformed model file (not valid JSON): number overflow"),
+              std::string::npos)
+        << e.what();
+    EXPECT_GT(e.line(), 0) << e.what();
+  }
+  // The same with a number in an otherwise valid model file.
+  try {
+    ParseModelFile("{\"format\": \"structgp-model\", \"version\": 1e999}", "small.json");
+    FAIL() << "accepted";
+  } catch (const DataError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "small.json:1:41: malformed model file (not valid JSON): number overflow parsing "
+              "'1e999'");
+  }
+}
+
 }  // namespace
 }  // namespace structgp

@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <tuple>
 #include <utility>
 
 #include "structgp/io/atomic_file.h"
@@ -336,6 +338,23 @@ Json ParseJson(const std::string& text, const std::string& path) {
     throw DataError(path, line, column,
                     std::string(at_end ? "truncated model file" : "malformed model file") +
                         " (not valid JSON): " + reason);
+  } catch (const Json::exception& e) {
+    // Valid JSON syntax the parser cannot hold, e.g. a number beyond the range of a double
+    // ("number overflow parsing '1e999'"): no byte position, so the quoted token is located.
+    std::string reason = e.what();
+    const size_t bracket = reason.find("] ");
+    if (bracket != std::string::npos) reason = reason.substr(bracket + 2);
+    int line = 0;
+    int column = 0;
+    const size_t open = reason.find('\'');
+    const size_t close = open == std::string::npos ? open : reason.find('\'', open + 1);
+    if (close != std::string::npos) {
+      const size_t at = text.find(reason.substr(open + 1, close - open - 1));
+      if (at != std::string::npos) std::tie(line, column) = LineAndColumn(text, at);
+    }
+    constexpr size_t kMaxReason = 120;
+    if (reason.size() > kMaxReason) reason = reason.substr(0, kMaxReason) + "...";
+    throw DataError(path, line, column, "malformed model file (not valid JSON): " + reason);
   }
 }
 
