@@ -104,5 +104,22 @@ TEST(FuzzRegression, ModelFileWithANumberBeyondDoubleIsADataError) {
   }
 }
 
+// fuzz_model_file: a model whose feature map has no shape parameter, used as a kernel, made
+// PriorVariance scale blocks of an empty Jacobian (no storage): Eigen offset a null pointer,
+// undefined behaviour reported by UBSan. The file must load or be refused cleanly; the
+// sanitizer build of this test is what proves the fix.
+TEST(FuzzRegression, KernelModelWithoutShapeParametersLoadsCleanly) {
+  for (const bool fix_checksum : {false, true}) {
+    const std::string raw = ReadData("model_file_kernel_prior_empty_jacobian.json");
+    const std::string text = fix_checksum ? WithValidChecksum(raw) : raw;
+    try {
+      const RobotModel model = ParseModelFile(text, "found.json");
+      EXPECT_TRUE(model.fitted());
+    } catch (const DataError& e) {
+      EXPECT_EQ(e.file(), "found.json");
+    }
+  }
+}
+
 }  // namespace
 }  // namespace structgp

@@ -38,7 +38,9 @@ Vector PriorVariance(const FeatureMap& map, const Hyperparameters& hyper,
   for (size_t b = 0; b < blocks.size(); ++b) {
     const double scale = std::exp(2.0 * hyper.log_block_scale[static_cast<Eigen::Index>(b)]);
     lambda.segment(blocks[b].begin, blocks[b].size) *= scale;
-    if (d_lambda_d_shape != nullptr) {
+    // No shape parameters: the Jacobian has no columns (and may have no storage, where even a
+    // block of it would offset a null pointer).
+    if (d_lambda_d_shape != nullptr && d_lambda_d_shape->cols() > 0) {
       d_lambda_d_shape->middleRows(blocks[b].begin, blocks[b].size) *= scale;
     }
   }
