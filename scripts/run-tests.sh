@@ -37,14 +37,14 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
     ctest --test-dir "$asan" --output-on-failure -j "$jobs"
 
-  # TSan: the tests that run threads (online learner next to a control loop, Nystrom features
-  # built on several threads); only their targets are built.
+  # TSan: the tests that run threads (online learner next to a control loop, multi-threaded
+  # batch statistics, Nystrom features built on several threads); only their targets are built.
   tsan=${STRUCTGP_TSAN_BUILD_DIR:-build-tsan}
   cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=thread \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
-  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom
+  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
-    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom)\.'
+    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom|batch_fit)\.'
 
   # libFuzzer: each target for a bounded time from its seed corpus.
   STRUCTGP_FUZZ_BUILD_DIR=${STRUCTGP_FUZZ_BUILD_DIR:-build-fuzz} \
