@@ -20,75 +20,25 @@
 #include <string>
 #include <vector>
 
-#ifndef STRUCTGP_CLI_PATH
-#error "STRUCTGP_CLI_PATH must name the structgp program"
-#endif
+#include "cli_runner.h"
+#include "temp_files.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
+using structgp::testing::CliResult;
+using structgp::testing::Contains;
+using structgp::testing::ReadFile;
+using structgp::testing::RunCli;
+using structgp::testing::WriteFile;
 
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("structgp_test_cli_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  std::string File(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
+struct TempDir : structgp::testing::TempDir {
+  TempDir() : structgp::testing::TempDir("test_cli") {}
 };
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void WriteFile(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
-}
-
-std::string Quote(const std::string& arg) {
-  std::string out = "'";
-  for (char c : arg) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-struct Result {
-  int code = -1;
-  std::string out;
-  std::string err;
-};
+using Result = CliResult;
 
 // Runs the program with the arguments; its stdout and stderr are captured in files of `dir`.
-Result RunCli(const TempDir& dir, const std::vector<std::string>& args) {
-  std::string command = Quote(STRUCTGP_CLI_PATH);
-  for (const auto& a : args) command += " " + Quote(a);
-  const std::string out = dir.File("stdout.txt");
-  const std::string err = dir.File("stderr.txt");
-  command += " > " + Quote(out) + " 2> " + Quote(err);
-  const int status = std::system(command.c_str());
-  Result r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = ReadFile(out);
-  r.err = ReadFile(err);
-  return r;
-}
-
-bool Contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 size_t CountLines(const std::string& text) {
   return static_cast<size_t>(std::count(text.begin(), text.end(), '\n'));
 }

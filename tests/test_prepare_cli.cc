@@ -22,69 +22,22 @@
 #include "structgp/sim/robot.h"
 #include "structgp/sim/trajectory.h"
 
-#ifndef STRUCTGP_CLI_PATH
-#error "STRUCTGP_CLI_PATH must name the structgp program"
-#endif
+#include "cli_runner.h"
+#include "temp_files.h"
 
 namespace structgp {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::Contains;
+using testing::ReadFile;
+using testing::RunCli;
+using testing::WriteFile;
+using Result = testing::CliResult;
 
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() / ("structgp_test_prepare_cli_" + std::to_string(::getpid()) +
-                                         "_" + std::to_string(counter++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  std::string File(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
+struct TempDir : testing::TempDir {
+  TempDir() : testing::TempDir("test_prepare_cli") {}
 };
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void WriteFile(const std::string& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
-}
-
-std::string Quote(const std::string& arg) {
-  std::string out = "'";
-  for (char c : arg) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
-
-Result RunCli(const TempDir& dir, const std::vector<std::string>& args) {
-  std::string command = Quote(STRUCTGP_CLI_PATH);
-  for (const auto& a : args) command += " " + Quote(a);
-  command += " > " + Quote(dir.File("stdout.txt")) + " 2> " + Quote(dir.File("stderr.txt"));
-  const int status = std::system(command.c_str());
-  Result r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = ReadFile(dir.File("stdout.txt"));
-  r.err = ReadFile(dir.File("stderr.txt"));
-  return r;
-}
-
-bool Contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
 
 // 6 s of the two-link arm at 1 kHz; currents i = tau / gain, positions with 1e-4 rad noise.
 struct Log {
