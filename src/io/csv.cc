@@ -12,16 +12,23 @@
 #include <utility>
 #include <vector>
 
+#include "io/csv_cells.h"
 #include "io/line_reader.h"
 #include "structgp/core/validate.h"
 
 namespace structgp {
 namespace {
 
+using internal::Cell;
+using internal::CellColumn;
 using internal::EditorColumn;
+using internal::IsBlankLine;
+using internal::ParseNumber;
+using internal::ParseResult;
+using internal::Quoted;
+using internal::Shortest;
+using internal::SplitCells;
 
-// Longest piece of a user's cell quoted in a message [characters]; longer text is cut.
-constexpr std::size_t kMaxQuotedChars = 40;
 // Most header names listed when the header has no joint columns at all.
 constexpr std::size_t kMaxListedNames = 10;
 
@@ -31,80 +38,6 @@ constexpr const char* kBlockPrefix[kNumBlocks] = {"q", "qd", "qdd", "tau"};
 
 const char* const kExpectedColumns = "q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN";
 
-// One cell of a line: bytes [begin, end) after trimming whitespace and one pair of double
-// quotes; `start` is where the cell begins (just after the previous separator).
-struct Cell {
-  std::size_t start;
-  std::size_t begin;
-  std::size_t end;
-};
-
-bool IsBlank(char c) { return c == ' ' || c == '\t'; }
-
-bool IsBlankLine(const std::string& line) {
-  for (char c : line) {
-    if (!IsBlank(c)) return false;
-  }
-  return true;
-}
-
-void SplitCells(const std::string& line, std::vector<Cell>* cells) {
-  cells->clear();
-  std::size_t start = 0;
-  for (;;) {
-    std::size_t stop = line.find(',', start);
-    if (stop == std::string::npos) stop = line.size();
-    std::size_t begin = start;
-    std::size_t end = stop;
-    while (begin < end && IsBlank(line[begin])) ++begin;
-    while (end > begin && IsBlank(line[end - 1])) --end;
-    if (end - begin >= 2 && line[begin] == '"' && line[end - 1] == '"') {
-      ++begin;
-      --end;
-    }
-    cells->push_back({start, begin, end});
-    if (stop == line.size()) break;
-    start = stop + 1;
-  }
-}
-
-std::string_view Text(const std::string& line, const Cell& cell) {
-  return std::string_view(line).substr(cell.begin, cell.end - cell.begin);
-}
-
-// The editor column of a cell: its first character, or where it starts when it is empty.
-int CellColumn(const std::string& line, const Cell& cell) {
-  return EditorColumn(line, cell.begin < cell.end ? cell.begin : cell.start);
-}
-
-// `text` in single quotes for a message, cut to kMaxQuotedChars, control bytes escaped.
-std::string Quoted(std::string_view text) {
-  std::string out = "'";
-  std::size_t shown = 0;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const unsigned char c = static_cast<unsigned char>(text[i]);
-    if ((c & 0xC0) != 0x80 && shown++ == kMaxQuotedChars) {
-      out += "...";
-      break;
-    }
-    if (c < 0x20 || c == 0x7F) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof(escaped), "\\x%02X", c);
-      out += escaped;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  out += "'";
-  return out;
-}
-
-std::string Shortest(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
-
 std::string Join(const std::vector<std::string>& names) {
   std::string out;
   for (const std::string& name : names) {
@@ -112,25 +45,6 @@ std::string Join(const std::vector<std::string>& names) {
     out += name;
   }
   return out;
-}
-
-enum class ParseResult { kOk, kNotANumber, kOutOfRange };
-
-// Parses the whole of `text` as a decimal number (C locale, optional sign, optional
-// exponent; "nan", "inf" and "infinity" in any case). Trailing characters are an error.
-ParseResult ParseNumber(std::string_view text, double* value) {
-  const char* first = text.data();
-  const char* last = text.data() + text.size();
-  // std::from_chars takes '-' but not '+'.
-  if (first != last && *first == '+' && last - first > 1 && first[1] != '-' && first[1] != '+') {
-    ++first;
-  }
-  const auto result = std::from_chars(first, last, *value, std::chars_format::general);
-  if (result.ec == std::errc::result_out_of_range && result.ptr == last) {
-    return ParseResult::kOutOfRange;
-  }
-  if (result.ec != std::errc() || result.ptr != last) return ParseResult::kNotANumber;
-  return ParseResult::kOk;
 }
 
 // A column the reader uses: `t`, or joint `joint` (1-based) of block `block`.
@@ -233,10 +147,10 @@ void CsvReader::ReadHeader() {
     }
   }
   double number = 0.0;
-  if (ParseNumber(Text(line_, cells_[0]), &number) == ParseResult::kOk) {
+  if (ParseNumber(CellText(line_, cells_[0]), &number) == ParseResult::kOk) {
     Fail(1, CellColumn(line_, cells_[0]),
          "expected a header row of column names, got a number " +
-             Quoted(Text(line_, cells_[0])) + " in CSV column 1 (the header row is required: " +
+             Quoted(CellText(line_, cells_[0])) + " in CSV column 1 (the header row is required: " +
              kExpectedColumns + ")");
   }
 
@@ -248,7 +162,7 @@ void CsvReader::ReadHeader() {
   std::map<std::string, int> first_seen;  // Recognised name -> CSV column (0-based).
   int max_joint = 0;
   for (int c = 0; c < num_cells; ++c) {
-    layout_.names[c] = std::string(Text(line_, cells_[c]));
+    layout_.names[c] = std::string(CellText(line_, cells_[c]));
     if (!ParseColumnName(layout_.names[c], &parsed[c])) continue;
     recognised[c] = true;
     const auto [it, inserted] = first_seen.emplace(layout_.names[c], c);
@@ -309,7 +223,7 @@ void CsvReader::ReadHeader() {
 }
 
 double CsvReader::ParseCell(int c, bool is_time) {
-  const std::string_view text = Text(line_, cells_[c]);
+  const std::string_view text = CellText(line_, cells_[c]);
   double value = 0.0;
   switch (ParseNumber(text, &value)) {
     case ParseResult::kOk:
@@ -362,7 +276,7 @@ void CsvReader::ReadRow() {
     }
     const double time = ParseCell(c, true);
     if (!times_.empty() && time < times_.back()) {
-      FailCell(c, "time goes backwards: " + Quoted(Text(line_, cells_[c])) + " after " +
+      FailCell(c, "time goes backwards: " + Quoted(CellText(line_, cells_[c])) + " after " +
                       Shortest(times_.back()) + " on line " + std::to_string(lines_.back()) +
                       " (t must be non-decreasing)");
     }
@@ -373,18 +287,7 @@ void CsvReader::ReadRow() {
 
 RobotData CsvReader::Read() {
   ReadHeader();
-  int first_blank_line = 0;
-  while (reader_.Next(&line_)) {
-    if (IsBlankLine(line_)) {
-      if (first_blank_line == 0) first_blank_line = reader_.line_number();
-      continue;
-    }
-    if (first_blank_line != 0) {
-      Fail(first_blank_line, 1,
-           "empty line inside the data (only empty lines at the end of the file are allowed)");
-    }
-    ReadRow();
-  }
+  while (internal::NextDataLine(&reader_, path_, &line_)) ReadRow();
   if (lines_.empty()) Fail(1, 0, "no data rows: the header is not followed by any data");
 
   const int n = layout_.num_joints;

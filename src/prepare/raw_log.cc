@@ -8,54 +8,26 @@
 #include <system_error>
 #include <vector>
 
+#include "io/csv_cells.h"
 #include "io/line_reader.h"
 #include "structgp/io/data_error.h"
 
 namespace structgp {
 namespace {
 
+using internal::Cell;
+using internal::CellText;
 using internal::EditorColumn;
+using internal::IsBlankLine;
+using internal::ParseNumber;
+using internal::ParseResult;
+using internal::Quoted;
+using internal::SplitCells;
 
 // The per-joint column sets of a raw log, in the order of their storage.
 enum Block { kQ = 0, kTau = 1, kCurrent = 2, kNumBlocks = 3 };
 constexpr const char* kPrefix[kNumBlocks] = {"q", "tau", "i"};
 constexpr const char* kExpected = "t (optional), q1..qN, and tau1..tauN or i1..iN";
-// Longest piece of a cell quoted in a message [characters].
-constexpr std::size_t kMaxQuoted = 40;
-
-struct Cell {
-  std::size_t start, begin, end;
-};
-
-void Split(const std::string& line, std::vector<Cell>* cells) {
-  cells->clear();
-  std::size_t start = 0;
-  for (;;) {
-    std::size_t stop = line.find(',', start);
-    if (stop == std::string::npos) stop = line.size();
-    std::size_t begin = start, end = stop;
-    while (begin < end && (line[begin] == ' ' || line[begin] == '\t')) ++begin;
-    while (end > begin && (line[end - 1] == ' ' || line[end - 1] == '\t')) --end;
-    if (end - begin >= 2 && line[begin] == '"' && line[end - 1] == '"') {
-      ++begin;
-      --end;
-    }
-    cells->push_back({start, begin, end});
-    if (stop == line.size()) break;
-    start = stop + 1;
-  }
-}
-
-bool Blank(const std::string& line) { return line.find_first_not_of(" \t") == std::string::npos; }
-
-std::string Quoted(std::string_view text) {
-  std::string out(text.substr(0, kMaxQuoted));
-  for (char& c : out) {
-    if (static_cast<unsigned char>(c) < 0x20) c = '?';
-  }
-  return "'" + out + (text.size() > kMaxQuoted ? "...'" : "'");
-}
-
 // "q12" -> (kQ, 12); "t" -> (-1, 0); false for any other name.
 bool ParseName(std::string_view name, int* block, int* joint) {
   if (name == "t") {
@@ -87,9 +59,7 @@ class RawReader {
   [[noreturn]] void Fail(int line, int column, const std::string& message) const {
     throw DataError(path_, line, column, message);
   }
-  int ColumnOf(const Cell& c) const {
-    return EditorColumn(line_, c.begin < c.end ? c.begin : c.start);
-  }
+  int ColumnOf(const Cell& c) const { return internal::CellColumn(line_, c); }
   void Header();
   void Row();
 
@@ -114,9 +84,9 @@ void RawReader::Header() {
                      "columns ") +
              kExpected + ")");
   }
-  if (Blank(line_))
+  if (IsBlankLine(line_))
     Fail(1, 1, std::string("line 1 is empty, expected the header row: ") + kExpected);
-  Split(line_, &cells_);
+  SplitCells(line_, &cells_);
   const int count = static_cast<int>(cells_.size());
   std::map<std::string, int> seen;
   std::vector<int> block(count, -2), joint(count, 0);
@@ -187,7 +157,7 @@ void RawReader::Header() {
 }
 
 void RawReader::Row() {
-  Split(line_, &cells_);
+  SplitCells(line_, &cells_);
   const int got = static_cast<int>(cells_.size());
   const int want = static_cast<int>(role_.size());
   if (got != want) {
@@ -201,17 +171,17 @@ void RawReader::Row() {
   values_.resize(start + 3 * static_cast<std::size_t>(n_), 0.0);
   for (int c = 0; c < got; ++c) {
     if (role_[c] == -2) continue;
-    const std::string_view text(line_.data() + cells_[c].begin, cells_[c].end - cells_[c].begin);
-    const char* first = text.data();
-    const char* last = first + text.size();
-    if (first != last && *first == '+' && last - first > 1 && first[1] != '-') ++first;
+    const std::string_view text = CellText(line_, cells_[c]);
     double value = 0.0;
-    const auto r = std::from_chars(first, last, value, std::chars_format::general);
+    const ParseResult parsed = ParseNumber(text, &value);
     const std::string where = "CSV column " + std::to_string(c + 1) + " (" + names_[c] + "): ";
-    if (r.ec != std::errc() || r.ptr != last) {
+    if (parsed != ParseResult::kOk) {
       Fail(reader_.line_number(), ColumnOf(cells_[c]),
            where + (text.empty() ? std::string("expected a number, got an empty cell")
-                                 : "expected a number, got " + Quoted(text)));
+                                 : "expected a number, got " + Quoted(text) +
+                                       (parsed == ParseResult::kOutOfRange
+                                            ? ", which is outside the range of a double"
+                                            : "")));
     }
     if (!std::isfinite(value)) {
       Fail(reader_.line_number(), ColumnOf(cells_[c]),
@@ -229,18 +199,7 @@ void RawReader::Row() {
 
 RawLog RawReader::Read() {
   Header();
-  int first_blank = 0;
-  while (reader_.Next(&line_)) {
-    if (Blank(line_)) {
-      if (first_blank == 0) first_blank = reader_.line_number();
-      continue;
-    }
-    if (first_blank != 0) {
-      Fail(first_blank, 1,
-           "empty line inside the data (only empty lines at the end of the file are allowed)");
-    }
-    Row();
-  }
+  while (internal::NextDataLine(&reader_, path_, &line_)) Row();
   if (lines_.empty()) Fail(1, 0, "no data rows: the header is not followed by any data");
   const Eigen::Index m = static_cast<Eigen::Index>(lines_.size());
   const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
