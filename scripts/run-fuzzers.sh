@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets of fuzz/ with clang (ASan + UBSan) and runs each for a bounded
-# time from its seed corpus in fuzz/corpus/<target>/. New inputs go to a scratch corpus in the
-# build directory (the repository is not modified); a crash, a sanitizer report, a timeout or
-# an out-of-memory stops the run with a nonzero status and leaves the input in
-# <build>/artifacts/<target>/.
+# Builds the libFuzzer targets of fuzz/ with clang (ASan + UBSan) and runs each from its seed
+# corpus in fuzz/corpus/<target>/. New inputs go to a scratch corpus in the build directory
+# (the repository is not modified); a crash, a sanitizer report, a timeout or an out-of-memory
+# stops the run with a nonzero status and leaves the input in <build>/artifacts/<target>/.
 #
 #   bash scripts/run-fuzzers.sh [SECONDS_PER_TARGET] [TARGET...]
 #
-# Environment: STRUCTGP_FUZZ_BUILD_DIR (default build-fuzz).
+# With STRUCTGP_FUZZ_RUNS=N (what CI uses) each target instead runs exactly N inputs from a
+# fixed seed: the same inputs on every run of the same build, so a CI result can be
+# reproduced. Time-bounded runs (the default) explore further and are for finding new bugs.
+#
+# Environment: STRUCTGP_FUZZ_BUILD_DIR (default build-fuzz), STRUCTGP_FUZZ_RUNS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -30,8 +33,14 @@ for target in "${targets[@]}"; do
   corpus="$build/corpus/$target"
   artifacts="$build/artifacts/$target/"
   mkdir -p "$corpus" "$artifacts"
-  echo "run-fuzzers: $target for ${seconds} s"
-  "$build/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+  if [ -n "${STRUCTGP_FUZZ_RUNS:-}" ]; then
+    budget=(-runs="$STRUCTGP_FUZZ_RUNS" -seed=1)
+    echo "run-fuzzers: $target, $STRUCTGP_FUZZ_RUNS inputs from seed 1"
+  else
+    budget=(-max_total_time="$seconds")
+    echo "run-fuzzers: $target for ${seconds} s"
+  fi
+  "$build/fuzz/$target" "${budget[@]}" -timeout=10 -rss_limit_mb=2048 \
     -max_len=65536 -print_final_stats=1 -artifact_prefix="$artifacts" \
     "$corpus" "fuzz/corpus/$target" 2> "$build/$target.log" || {
       tail -n 60 "$build/$target.log"

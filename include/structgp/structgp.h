@@ -60,6 +60,11 @@
 #include "structgp/io/atomic_file.h"
 #include "structgp/io/model_file.h"
 
+// Raw logs to data files: zero-phase filtering and differentiation.
+#include "structgp/prepare/butterworth.h"
+#include "structgp/prepare/raw_log.h"
+#include "structgp/prepare/prepare.h"
+
 // The HTML diagnosis report.
 #include "structgp/report/report.h"
 
