@@ -4,8 +4,6 @@
 // expected outcome for a bad file; a model that loads must predict (or return a status, never a
 // NaN) and save again.
 
-#include <zlib.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -14,6 +12,7 @@
 #include <string>
 
 #include "structgp/core/types.h"
+#include "model_file_checksum.h"
 #include "structgp/io/model_file.h"
 
 namespace {
@@ -23,19 +22,6 @@ void Check(bool condition, const char* what) {
     std::fprintf(stderr, "fuzz_model_file: broken guarantee: %s\n", what);
     std::abort();
   }
-}
-
-// The checksum as the format defines it: CRC-32 of the compact JSON text of the object
-// without its "checksum" field, written "crc32:xxxxxxxx".
-std::string WithValidChecksum(nlohmann::json doc) {
-  doc.erase("checksum");
-  const std::string compact = doc.dump();
-  const uLong crc = crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(compact.data()),
-                          static_cast<uInt>(compact.size()));
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "crc32:%08lx", static_cast<unsigned long>(crc));
-  doc["checksum"] = buffer;
-  return doc.dump();
 }
 
 void LoadAndCheck(const std::string& text) {
@@ -67,7 +53,10 @@ void LoadAndCheck(const std::string& text) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(bytes), size);
   LoadAndCheck(text);
-  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (doc.is_object()) LoadAndCheck(WithValidChecksum(doc));
+  nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_object()) {
+    structgp::testing::SetValidChecksum(&doc);
+    LoadAndCheck(doc.dump());
+  }
   return 0;
 }

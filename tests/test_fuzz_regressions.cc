@@ -2,7 +2,6 @@
 // and replayed here with the same guarantees the targets check, so that a finding stays fixed.
 
 #include <gtest/gtest.h>
-#include <zlib.h>
 
 #include <cstdio>
 #include <fstream>
@@ -11,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "model_file_checksum.h"
 #include "structgp/io/data_error.h"
 #include "structgp/io/model_file.h"
 
@@ -31,13 +31,7 @@ std::string ReadData(const std::string& name) {
 // The text with its checksum recomputed, as fuzz_model_file does before its second parse.
 std::string WithValidChecksum(const std::string& text) {
   nlohmann::json doc = nlohmann::json::parse(text);
-  doc.erase("checksum");
-  const std::string compact = doc.dump();
-  const uLong crc = crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(compact.data()),
-                          static_cast<uInt>(compact.size()));
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "crc32:%08lx", static_cast<unsigned long>(crc));
-  doc["checksum"] = buffer;
+  testing::SetValidChecksum(&doc);
   return doc.dump();
 }
 

@@ -6,7 +6,6 @@
 
 #include <gtest/gtest.h>
 #include <unistd.h>
-#include <zlib.h>
 
 #include <algorithm>
 #include <atomic>
@@ -19,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "model_file_checksum.h"
 #include "temp_files.h"
 #include "structgp/io/model_file.h"
 #include "structgp/kernel/kernel.h"
@@ -319,13 +319,7 @@ class ModelFileErrors : public ::testing::Test {
   std::string Edited(const std::function<void(Json*)>& edit) const {
     Json doc = Json::parse(text_);
     edit(&doc);
-    doc.erase("checksum");
-    const std::string compact = doc.dump();
-    const uLong crc = crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(compact.data()),
-                            static_cast<uInt>(compact.size()));
-    char buffer[32];
-    std::snprintf(buffer, sizeof(buffer), "crc32:%08lx", static_cast<unsigned long>(crc));
-    doc["checksum"] = buffer;
+    testing::SetValidChecksum(&doc);
     return doc.dump(2);
   }
 
