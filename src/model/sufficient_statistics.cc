@@ -76,10 +76,7 @@ void AccumulateRange(const FeatureMap& map, const ConstMatrixRef& X, const Const
         }
       }
     }
-    stats->gram.selfadjointView<Eigen::Lower>().rankUpdate(block);
-    stats->cross.noalias() += block * Y.middleRows(start, rows);
-    stats->y_squared += Y.middleRows(start, rows).colwise().squaredNorm().transpose();
-    stats->count += static_cast<double>(rows);
+    stats->AccumulateTransposed(block, Y.middleRows(start, rows));
   }
 }
 
