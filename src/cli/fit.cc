@@ -44,8 +44,8 @@ class FitCommand : public Command {
         ->check(CLI::Range(1, 256))
         ->capture_default_str();
     cmd->add_option("--max-kernel-rows", max_kernel_rows_,
-                    "Function-space models (rbf, rbfs, or pol/motor with more features than "
-                    "rows) are fitted on at most this many evenly spaced rows; 0 = no limit")
+                    "Function-space models (rbf, rbfs, pol from 4 joints, or pol/motor with more "
+                    "features than rows) are fitted on at most this many evenly spaced rows; 0 = no limit")
         ->check(CLI::Range(0, 100000000))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
