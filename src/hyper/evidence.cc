@@ -43,10 +43,7 @@ Status WeightSpaceEvidence::Evaluate(const Hyperparameters& hyper, double* lml,
   // Hyper-parameters far out (a shape parameter whose prior variances underflow, a noise of
   // 1e-300) give a prior the model cannot represent (weight_space_gp.h): an ordinary failed
   // evaluation, so that an optimiser backs off.
-  const double noise = hyper.noise_variance();
-  if (!lambda.allFinite() || !(noise > 0.0) ||
-      !(lambda.maxCoeff() / noise <= kMaxPriorToNoiseRatio) ||
-      !(lambda.minCoeff() / noise >= 1.0 / kMaxPriorToNoiseRatio)) {
+  if (!lambda.allFinite() || !PriorToNoiseRatioOk(lambda, hyper.noise_variance())) {
     return Status::kNotPositiveDefinite;
   }
   if (!model_) {

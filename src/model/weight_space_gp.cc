@@ -16,6 +16,15 @@ constexpr double kLog2Pi = 1.8378770664093453;
 // rounding of any sequence of updates, far below any damage worth detecting.
 constexpr double kStateVarianceSlack = 1e-6;
 
+// (S S^T)_kk for an upper-triangular S: the squared row norms of its upper triangle, summed
+// column by column (contiguous) into `out`, which must have S's size. Allocation-free.
+void UpperRowSquaredNorms(const Matrix& S, VectorRef out) {
+  out.setZero();
+  for (Eigen::Index j = 0; j < S.cols(); ++j) {
+    out.head(j + 1) += S.col(j).head(j + 1).cwiseAbs2();
+  }
+}
+
 Vector ScalesOrOnes(const Vector& output_scales, int num_outputs) {
   return output_scales.size() == 0 ? Vector::Ones(num_outputs) : output_scales;
 }
@@ -34,9 +43,9 @@ void ValidatePrior(const Vector& prior_variance, double noise_variance, int num_
     throw std::invalid_argument("WeightSpaceGP: prior_variance must be > 0 everywhere");
   }
   RequireInRange("WeightSpaceGP noise_variance", noise_variance, 0.0, HUGE_VAL);
-  const double max_ratio = prior_variance.maxCoeff() / noise_variance;
-  const double min_ratio = prior_variance.minCoeff() / noise_variance;
-  if (!(max_ratio <= kMaxPriorToNoiseRatio && min_ratio >= 1.0 / kMaxPriorToNoiseRatio)) {
+  if (!PriorToNoiseRatioOk(prior_variance, noise_variance)) {
+    const double max_ratio = prior_variance.maxCoeff() / noise_variance;
+    const double min_ratio = prior_variance.minCoeff() / noise_variance;
     throw std::invalid_argument(
         "WeightSpaceGP: prior_variance / noise_variance must lie in [1e-200, 1e200], got " +
         std::to_string(min_ratio) + " .. " + std::to_string(max_ratio) +
@@ -52,6 +61,12 @@ void ValidatePrior(const Vector& prior_variance, double noise_variance, int num_
 }
 
 }  // namespace
+
+bool PriorToNoiseRatioOk(const Vector& prior_variance, double noise_variance) {
+  if (!(noise_variance > 0.0) || prior_variance.size() == 0) return false;
+  return prior_variance.maxCoeff() / noise_variance <= kMaxPriorToNoiseRatio &&
+         prior_variance.minCoeff() / noise_variance >= 1.0 / kMaxPriorToNoiseRatio;
+}
 
 WeightSpaceGP::WeightSpaceGP(const Vector& prior_variance, double noise_variance,
                              int num_outputs, const Vector& output_scales)
@@ -151,12 +166,7 @@ Status WeightSpaceGP::Fit(const SufficientStatistics& stats, FitJitter jitter_po
 
 void WeightSpaceGP::RefreshHeadroom() {
   Commit(nullptr, nullptr, nullptr, nullptr);
-  const Eigen::Index D = num_features();
-  // Row norms of the upper triangle, column by column (contiguous), into the scratch vector.
-  work_h_.setZero();
-  for (Eigen::Index j = 0; j < D; ++j) {
-    work_h_.head(j + 1) += factor_.col(j).head(j + 1).cwiseAbs2();
-  }
+  UpperRowSquaredNorms(factor_, work_h_);
   log_variance_headroom_ = std::log(kMaxPriorToNoiseRatio) - std::log(work_h_.maxCoeff());
 }
 
@@ -390,7 +400,8 @@ WeightSpaceGP WeightSpaceGP::FromState(const WeightSpaceGPState& state) {
   if (std::isfinite(state.log_prior_broadening)) {
     const Vector bound = state.prior_variance * (std::exp(state.log_prior_broadening) /
                                                  state.noise_variance);
-    const Vector row_norms = state.covariance_factor.rowwise().squaredNorm();
+    Vector row_norms(D);
+    UpperRowSquaredNorms(state.covariance_factor, row_norms);
     for (Eigen::Index k = 0; k < D; ++k) {
       if (!(row_norms[k] <= bound[k] * (1.0 + kStateVarianceSlack))) {
         throw std::invalid_argument(

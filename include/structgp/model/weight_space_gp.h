@@ -91,6 +91,11 @@ inline constexpr int kMaxJitterSteps = 4;
 /// still finite.
 inline constexpr double kMaxPriorToNoiseRatio = 1e200;
 
+/// True when every Lambda_k / sigma_n^2 lies in [1 / kMaxPriorToNoiseRatio,
+/// kMaxPriorToNoiseRatio] (false for NaN or a non-positive noise variance): the priors a
+/// WeightSpaceGP accepts.
+bool PriorToNoiseRatioOk(const Vector& prior_variance, double noise_variance);
+
 /// Derivatives of the log marginal likelihood.
 /// Whether WeightSpaceGP::Fit may add jitter when the precision is singular to working
 /// precision (the ladder of the policy above).
