@@ -580,7 +580,9 @@ TEST(KernelGP, RealTimePathDoesNotAllocate) {
       }
       count = guard.count();
     }
-    if (testing::CountsEveryAllocation()) EXPECT_EQ(count, 0u) << kernel->parameter_names()[0];
+    if (testing::CountsEveryAllocation()) {
+      EXPECT_EQ(count, 0u) << kernel->parameter_names()[0];
+    }
     EXPECT_EQ(model.size(), 100);
     // Full (Fit reserves exactly m): the capacity status does not allocate either.
     KernelGP full(*kernel, 0.04, P);
@@ -594,7 +596,9 @@ TEST(KernelGP, RealTimePathDoesNotAllocate) {
       count = guard.count();
     }
     EXPECT_EQ(status, Status::kCapacityExceeded);
-    if (testing::CountsEveryAllocation()) EXPECT_EQ(count, 0u);
+    if (testing::CountsEveryAllocation()) {
+      EXPECT_EQ(count, 0u);
+    }
   }
   if (!testing::CountsEveryAllocation()) GTEST_SKIP() << testing::kIncompleteCountReason;
 }

@@ -54,7 +54,9 @@ TEST(WeightSpaceGPRealTime, UpdateDowndatePredictAllocateNothing) {
       ASSERT_EQ(model.Downdate(phi2, y), Status::kOk);
       ASSERT_EQ(model.Update(bad, y), Status::kInvalidInput);
     }
-    if (testing::CountsEveryAllocation()) EXPECT_EQ(guard.count(), 0u);
+    if (testing::CountsEveryAllocation()) {
+      EXPECT_EQ(guard.count(), 0u);
+    }
   }
   if (!testing::CountsEveryAllocation()) GTEST_SKIP() << testing::kIncompleteCountReason;
 }
