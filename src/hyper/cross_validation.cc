@@ -258,18 +258,4 @@ TrainTestSplit TrainTestSplitPerSegment(const std::vector<std::pair<int, int>>& 
   return split;
 }
 
-Matrix SelectRows(const ConstMatrixRef& X, const std::vector<int>& rows) {
-  Matrix out(static_cast<Eigen::Index>(rows.size()), X.cols());
-  for (size_t i = 0; i < rows.size(); ++i) {
-    const int r = rows[i];
-    if (r < 0 || r >= X.rows()) {
-      throw std::invalid_argument("SelectRows: expected row indices in [0, " +
-                                  std::to_string(X.rows()) + "), got " + std::to_string(r) +
-                                  " at position " + std::to_string(i));
-    }
-    out.row(static_cast<Eigen::Index>(i)) = X.row(r);
-  }
-  return out;
-}
-
 }  // namespace structgp

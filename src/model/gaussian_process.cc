@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "structgp/core/row_subset.h"
 #include "structgp/core/validate.h"
 #include "structgp/kernel/feature_kernel.h"
 
@@ -39,18 +40,14 @@ void ValidateBatch(const BatchFitOptions& batch) {
   }
 }
 
-// Rows floor(k m / M), k = 0..M-1, of X and Y when m > M > 0; else nothing is copied.
+// The evenly spaced subset of X and Y (core/row_subset.h) when m > max_rows > 0; else
+// nothing is copied.
 bool EvenlySpaced(const ConstMatrixRef& X, const ConstMatrixRef& Y, int max_rows, Matrix* Xs,
                   Matrix* Ys) {
-  const Eigen::Index m = X.rows();
-  if (max_rows == 0 || m <= max_rows) return false;
-  Xs->resize(max_rows, X.cols());
-  Ys->resize(max_rows, Y.cols());
-  for (Eigen::Index k = 0; k < max_rows; ++k) {
-    const Eigen::Index i = k * m / max_rows;
-    Xs->row(k) = X.row(i);
-    Ys->row(k) = Y.row(i);
-  }
+  if (max_rows == 0 || X.rows() <= max_rows) return false;
+  const std::vector<int> rows = EvenlySpacedRows(X.rows(), max_rows);
+  *Xs = SelectRows(X, rows);
+  *Ys = SelectRows(Y, rows);
   return true;
 }
 

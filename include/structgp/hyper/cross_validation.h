@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "structgp/core/status.h"
+#include "structgp/core/row_subset.h"  // SelectRows
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
 #include "structgp/hyper/hyperparameters.h"
@@ -144,10 +145,6 @@ TrainTestSplit TrainTestSplitPerTrajectory(const std::vector<int>& trajectory_id
 /// ranges, or a bad fraction.
 TrainTestSplit TrainTestSplitPerSegment(const std::vector<std::pair<int, int>>& segments,
                                         double train_fraction = 1.0 / 3.0);
-
-/// The rows of X with the given indices, in that order. Throws std::invalid_argument on an
-/// index out of range.
-Matrix SelectRows(const ConstMatrixRef& X, const std::vector<int>& rows);
 
 }  // namespace structgp
 

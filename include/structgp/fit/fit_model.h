@@ -1,0 +1,192 @@
+#ifndef STRUCTGP_FIT_FIT_MODEL_H_
+#define STRUCTGP_FIT_FIT_MODEL_H_
+
+/// @file
+/// The fitting workflow of a RobotModel in one call, as `structgp fit` runs it: choose the
+/// hyper-parameters (type-II maximum likelihood, blocked cross-validation, or the defaults),
+/// then fit the model to every row. FitOptions -> FitModel -> FitSummary.
+///
+///     structgp::FitOptions options;                       // evidence, defaults
+///     structgp::FittedModel fit = structgp::FitModel(spec, states, torques, t, options);
+///     if (!fit.summary.IsUsable()) { std::cerr << fit.summary.message; ... }
+///     std::cout << structgp::FitReport(fit.model, fit.summary);
+///
+/// Errors: caller mistakes (sizes, NaN/Inf in the data, invalid options, a method the model
+/// cannot use) throw std::invalid_argument naming what is wrong; numerical trouble (the
+/// evidence cannot be evaluated at the start, every cross-validation candidate fails, the
+/// posterior is not positive definite) and a cancelled fit are reported by
+/// FitSummary::termination, with the model left unfitted.
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "structgp/core/types.h"
+#include "structgp/hyper/marginal_likelihood.h"
+#include "structgp/model/model_spec.h"
+#include "structgp/model/robot_model.h"
+
+namespace structgp {
+
+/// How the hyper-parameters are chosen.
+enum class HyperparameterMethod {
+  /// Type-II maximum likelihood (Ceres LBFGS on the log evidence). Feature-map models: after
+  /// profiling the noise and output scales, over the shape, block scales and noise, on cached
+  /// Phi^T Phi (O(D^3) per evaluation). Kernel models: over the kernel's parameters and the
+  /// noise on at most FitOptions::max_evidence_rows rows (O(m^3) per evaluation).
+  kEvidence,
+  /// Blocked cross-validation on contiguous folds over a grid of shape and noise values
+  /// (feature-map models only).
+  kCrossValidation,
+  /// RobotModel::DefaultHyperparameters: output scale = torque RMS, noise 10% of it.
+  kFixed,
+};
+
+/// "ml", "cv", "fixed" (the CLI's --hyper words).
+const char* ToString(HyperparameterMethod method);
+/// The inverse of ToString; false (nothing written) for any other text.
+bool FromString(const std::string& text, HyperparameterMethod* method);
+
+/// What FitOptions::callback is told.
+struct FitProgress {
+  /// A line for a person ("maximising the evidence over ..."), or empty for an iteration.
+  std::string message;
+  /// Evidence search: LBFGS iterations so far (0 before the first).
+  int iteration = 0;
+  /// Evidence search: -log p(Y) at the current point (nats); NaN when not known.
+  double negative_log_evidence = 0.0;
+  /// Since FitModel was called.
+  double seconds = 0.0;
+};
+
+/// Returned by FitOptions::callback.
+enum class FitCallbackReturn { kContinue, kAbort };
+
+struct FitOptions {
+  HyperparameterMethod method = HyperparameterMethod::kEvidence;
+
+  /// kEvidence: the LBFGS settings, which groups are free and their bounds. The defaults fit
+  /// shape, block scales and noise (output scales profiled first, then held).
+  MaximumLikelihoodOptions evidence;
+  /// kEvidence on feature-map models: profile the noise level and the output scales by
+  /// evidence (a cheap one-dimensional search per output) before LBFGS.
+  bool profile_noise_and_scales = true;
+  /// kEvidence on kernel models: the kernel's hyper-parameters are fitted on at most this many
+  /// rows (core/row_subset.h: evenly spaced); the model then uses all rows (up to
+  /// RobotModelOptions::batch.max_kernel_rows). 0 = every row.
+  int max_evidence_rows = 1000;
+
+  /// kCrossValidation: number of contiguous folds (>= 2, at most the number of rows).
+  int cv_folds = 5;
+  /// kCrossValidation: shape values tried, as offsets from the map's default (log units).
+  std::vector<double> cv_shape_offsets = {-2.0, -1.0, 0.0, 1.0, 2.0};
+  /// kCrossValidation: noise levels sigma_n tried, relative to each joint's torque scale.
+  std::vector<double> cv_noise_levels = {0.3, 0.1, 0.03, 0.01, 0.003, 0.001};
+
+  /// Threads accumulating Phi^T Phi of feature-map models for the hyper-parameter search
+  /// (the final fit uses RobotModelOptions::batch).
+  int num_threads = 1;
+
+  /// Called with every progress line and after every LBFGS iteration; kAbort stops the fit
+  /// (FitTermination::kUserAbort, the model is left unfitted). Called on the thread that
+  /// called FitModel. May be empty.
+  std::function<FitCallbackReturn(const FitProgress&)> callback;
+
+  /// Options of the RobotModel that FitModel(spec, ...) builds.
+  RobotModelOptions model;
+
+  /// True when the options are usable; otherwise false with the reason in *error (may be
+  /// null).
+  bool IsValid(std::string* error) const;
+};
+
+/// How a fit ended.
+enum class FitTermination {
+  /// The hyper-parameter search ended normally (evidence: a tolerance was met; cross-
+  /// validation: the grid was scored; fixed: nothing to search) and the model is fitted.
+  kConverged,
+  /// The evidence search stopped at its iteration or time limit; the model is fitted at the
+  /// best point evaluated.
+  kMaxIterations,
+  /// The evidence search found no step that lowers the objective (usually at a bound, or at
+  /// the limit of rounding); the model is fitted at the best point evaluated.
+  kLineSearchFailed,
+  /// The callback asked to stop. The model is not fitted.
+  kUserAbort,
+  /// Numerical failure; the model is not fitted. The message names the cause.
+  kFailure,
+};
+
+/// "converged", "max_iterations", "line_search_failed", "user_abort", "failure".
+const char* ToString(FitTermination termination);
+
+struct FitSummary {
+  FitTermination termination = FitTermination::kFailure;
+  /// Why it ended, from the stage that decided.
+  std::string message;
+  HyperparameterMethod method = HyperparameterMethod::kEvidence;
+  /// One line on how the hyper-parameters were chosen, e.g. "type-II maximum likelihood
+  /// (converged, 23 iterations)".
+  std::string method_description;
+  /// More lines: hyper-parameters at a bound, subsets of rows used, ...
+  std::vector<std::string> notes;
+
+  /// Evidence search: LBFGS iterations and evaluations of the evidence (all kinds).
+  int iterations = 0;
+  int num_evaluations = 0;
+  /// Evidence search: -log p(Y) at the start and at the result, nats (NaN when not searched).
+  double initial_negative_log_evidence = 0.0;
+  double final_negative_log_evidence = 0.0;
+  /// Names of the hyper-parameters that ended within kAtBoundDistance of a bound.
+  std::vector<std::string> at_bounds;
+  /// Cross-validation: held-out mean nMSE of the chosen candidate, candidates scored.
+  double cv_mean_nmse = 0.0;
+  int cv_candidates = 0;
+
+  /// Rows given, rows the hyper-parameter search evaluated, rows the fitted model holds.
+  int rows = 0;
+  int hyperparameter_rows = 0;
+  int model_rows = 0;
+
+  /// Wall-clock seconds of the hyper-parameter search and of the whole call.
+  double hyperparameter_seconds = 0.0;
+  double total_seconds = 0.0;
+
+  /// True when the model was fitted (kConverged, kMaxIterations, kLineSearchFailed).
+  bool IsUsable() const;
+  /// One line: method, termination, iterations, evidence, time.
+  std::string BriefReport() const;
+};
+
+/// Chooses the hyper-parameters of *model by options.method and fits it to every row.
+/// states: m x 3N (q, qd, qdd), torques: m x N, t: m times in seconds, or empty when the
+/// data have none (then the model must not use the time). Rows in time order (the folds of
+/// cross-validation are contiguous). Throws std::invalid_argument on caller mistakes (see the
+/// file comment); a numerical failure is a termination value.
+FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
+                    const ConstMatrixRef& torques, const ConstVectorRef& t, RobotModel* model);
+
+/// A model with the summary of its fit.
+struct FittedModel {
+  RobotModel model;
+  FitSummary summary;
+};
+
+/// Builds the model of spec for torques.cols() joints with options.model, then fits it as
+/// above. Throws std::invalid_argument when the spec cannot be built for that robot.
+FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,
+                     const ConstMatrixRef& torques, const ConstVectorRef& t,
+                     const FitOptions& options = FitOptions());
+
+/// The model's inputs for these data: the states, followed by t when the model uses the
+/// time. Throws std::invalid_argument when the model needs t and t is empty, or on sizes.
+Matrix ModelInputs(const RobotModel& model, const ConstMatrixRef& states, const ConstVectorRef& t);
+
+/// Multi-line description of a fitted model and its fit: features and form, how the
+/// hyper-parameters were chosen (with the notes), every hyper-parameter, the noise per joint,
+/// the log evidence and the friction and effect coefficients with their posterior std.
+std::string FitReport(const RobotModel& model, const FitSummary& summary);
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_FIT_FIT_MODEL_H_
