@@ -85,7 +85,7 @@ void BM_BatchFitLarge(benchmark::State& state) {
   const int threads = static_cast<int>(state.range(2));
   const Data& data = DataOfSize(m);
   const auto map = MapOfSize(d);
-  const Hyperparameters h = Hyperparameters::Defaults(*map, kOutputs);
+  const Hyperparameters h = DefaultHyperparameters(*map, kOutputs);
   BatchFitOptions batch;
   batch.num_threads = threads;
   double extra = 0.0;

@@ -443,7 +443,7 @@ std::unique_ptr<Kernel> MakeKernel(const ModelKind& kind, const Problem& p) {
   }
   if (!kind.friction) return base;
   auto friction_map = std::make_shared<FrictionFeatureMap>(n, RobotModelOptions().friction_width);
-  const FeatureKernel friction(friction_map, Hyperparameters::Defaults(*friction_map, n));
+  const FeatureKernel friction(friction_map, DefaultHyperparameters(*friction_map, n));
   return std::make_unique<SumKernel>(std::vector<const Kernel*>{base.get(), &friction});
 }
 
@@ -456,11 +456,11 @@ FitResult FitKernelForm(const ModelKind& kind, const Problem& p, const Flags& f,
   FitResult result;
   result.form = "kernel form";
   std::unique_ptr<Kernel> kernel = MakeKernel(kind, p);
-  KernelHyperparameters hyper = KernelHyperparameters::Defaults(*kernel, n);
+  Hyperparameters hyper = DefaultHyperparameters(*kernel, n);
   const bool warm = kind.friction && base != nullptr && std::isfinite(base->log_noise_std) &&
                     base->kernel_parameters.size() + 1 == kernel->num_parameters();
   if (warm) {
-    hyper.kernel_parameters.head(base->kernel_parameters.size()) = base->kernel_parameters;
+    hyper.shape.head(base->kernel_parameters.size()) = base->kernel_parameters;
     hyper.log_noise_std = base->log_noise_std;
   }
   const MaximumLikelihoodSummary s =
@@ -468,9 +468,9 @@ FitResult FitKernelForm(const ModelKind& kind, const Problem& p, const Flags& f,
   result.note = std::string(ToString(s.termination)) + " after " +
                 std::to_string(s.num_evaluations) + " evaluations" + (warm ? ", warm start" : "");
   if (!s.usable()) return result;
-  result.kernel_parameters = hyper.kernel_parameters;
+  result.kernel_parameters = hyper.shape;
   result.log_noise_std = hyper.log_noise_std;
-  kernel->set_parameters(hyper.kernel_parameters);
+  kernel->set_parameters(hyper.shape);
   Matrix alpha;
   if (!SolveKernelSystem(*kernel, p.X_train, p.Y_train, std::exp(2.0 * hyper.log_noise_std),
                          &alpha)) {

@@ -74,7 +74,7 @@
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/hyper/evidence.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/io/atomic_file.h"
 #include "structgp/io/csv.h"
@@ -554,14 +554,14 @@ std::unique_ptr<Kernel> MakeKernel(const std::string& base, bool friction, const
   }
   if (!friction) return k;
   const auto map = FrictionMap(n);
-  const FeatureKernel fri(map, Hyperparameters::Defaults(*map, n));
+  const FeatureKernel fri(map, DefaultHyperparameters(*map, n));
   return std::make_unique<SumKernel>(std::vector<const Kernel*>{k.get(), &fri});
 }
 
 // What a kernel-form fit leaves for the Nystrom models.
 struct KernelFit {
   std::unique_ptr<Kernel> kernel;
-  KernelHyperparameters hyper;
+  Hyperparameters hyper;
   double ml_seconds = 0.0;
   bool ok = false;
 };
@@ -578,7 +578,7 @@ Result FitKernelForm(const Split& s, const std::string& model_name, const Flags&
   const Matrix Z = standardizer.Forward(s.train.Y);
   const auto start = std::chrono::steady_clock::now();
   std::unique_ptr<Kernel> kernel = MakeKernel(base, friction, s.train.X, n);
-  KernelHyperparameters hyper = KernelHyperparameters::Defaults(*kernel, n);
+  Hyperparameters hyper = DefaultHyperparameters(*kernel, n);
   const std::vector<int> ml_index = EvenlySpaced(s.train.size(), f.ml_rows);
   const Matrix X_ml = TakeRows(s.train.X, ml_index), Z_ml = TakeRows(Z, ml_index);
   const MaximumLikelihoodSummary ml =
@@ -588,13 +588,13 @@ Result FitKernelForm(const Split& s, const std::string& model_name, const Flags&
   note << "ML-II on " << ml_index.size() << " rows: " << MlNote(ml);
   r.note = note.str();
   if (!ml.usable()) return r;
-  kernel->set_parameters(hyper.kernel_parameters);
+  kernel->set_parameters(hyper.shape);
   if (f.verbose) {
     const std::vector<std::string> names = kernel->parameter_names();
     std::printf("%s fitted:", model_name.c_str());
     for (size_t i = 0; i < names.size(); ++i) {
       std::printf(" %s=%.4g", names[i].c_str(),
-                  hyper.kernel_parameters[static_cast<Eigen::Index>(i)]);
+                  hyper.shape[static_cast<Eigen::Index>(i)]);
     }
     std::printf(" log_noise_std=%.4g; %s\n", hyper.log_noise_std, ml.BriefReport().c_str());
   }
@@ -648,8 +648,8 @@ Result FitNystrom(const Split& s, int M, const KernelFit& pol_fri, const Flags& 
       std::vector<std::shared_ptr<const FeatureMap>>{nystrom, friction});
   r.form = "weight space, D = " + std::to_string(map->dim());
   // Start: the kernel-form fit's friction prior and noise.
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, n);
-  const Vector kp = pol_fri.hyper.kernel_parameters;
+  Hyperparameters hyper = DefaultHyperparameters(*map, n);
+  const Vector kp = pol_fri.hyper.shape;
   const int fri_begin = pol.num_parameters();
   const int fri_blocks = static_cast<int>(hyper.log_block_scale.size()) - 1;
   for (int b = 0; b < fri_blocks; ++b) {

@@ -39,7 +39,7 @@
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/weight_space_gp.h"
 #include "structgp/online/online_learner.h"
 #include "structgp/sim/dataset.h"
@@ -292,7 +292,7 @@ void TrainOffline(Setup* s) {
       std::vector<std::shared_ptr<const structgp::FeatureMap>>{
           std::make_shared<structgp::PolFeatureMap>(kJoints),
           std::make_shared<structgp::FrictionFeatureMap>(kJoints, kFrictionWidth)});
-  structgp::Hyperparameters hyper = structgp::Hyperparameters::Defaults(*map, kJoints);
+  structgp::Hyperparameters hyper = structgp::DefaultHyperparameters(*map, kJoints);
   // Broad prior on the friction coefficients (the semi-parametric sum, eqs. 43-44).
   hyper.log_block_scale[hyper.log_block_scale.size() - 1] = std::log(10.0);
   s->map = map;

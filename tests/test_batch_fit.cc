@@ -129,7 +129,7 @@ TEST(AccumulateStatistics, RejectsBadInput) {
 
 TEST(GaussianProcessBatch, ThreadedFitEqualsSingleThreadFit) {
   auto map = std::make_shared<PolFeatureMap>(2);
-  const Hyperparameters h = Hyperparameters::Defaults(*map, 2);
+  const Hyperparameters h = DefaultHyperparameters(*map, 2);
   const Data data = MakeData(5000, map->input_dim(), 2, kSeed + 4);
   GaussianProcess one(map, h, 2, Form::kWeightSpace);
   BatchFitOptions batch;
@@ -182,7 +182,7 @@ TEST(GaussianProcessBatch, FunctionSpaceTakesAnEvenlySpacedSubsetBeyondTheLimit)
   // A feature-map model in function space obeys the same limit.
   auto map = std::make_shared<PolFeatureMap>(2);
   batch.max_kernel_rows = 40;
-  GaussianProcess pol(map, Hyperparameters::Defaults(*map, 2), 2, Form::kFunctionSpace, batch);
+  GaussianProcess pol(map, DefaultHyperparameters(*map, 2), 2, Form::kFunctionSpace, batch);
   const Data states = MakeData(100, map->input_dim(), 2, kSeed + 6);
   ASSERT_EQ(pol.Fit(states.X, states.Y), Status::kOk);
   EXPECT_EQ(pol.function_space()->size(), 40);

@@ -206,7 +206,7 @@ TEST(FunctionSpacePol, DiagnosisNamesCoulombOnFourJoints) {
     auto model = std::make_unique<RobotModel>(spec, 4);
     EXPECT_EQ(model->feature_map(), nullptr);
     auto* kernel = const_cast<Kernel*>(model->kernel());
-    KernelHyperparameters kh = KernelHyperparameters::Defaults(*kernel, 4);
+    Hyperparameters kh = DefaultHyperparameters(*kernel, 4);
     Hyperparameters h = model->DefaultHyperparameters(scenario.train.Y);
     kh.log_output_scale = h.log_output_scale;
     // Every third row for the evidence: O(m^3) per evaluation.
@@ -219,7 +219,7 @@ TEST(FunctionSpacePol, DiagnosisNamesCoulombOnFourJoints) {
     MaximumLikelihoodOptions ml;
     ml.max_iterations = 60;
     EXPECT_TRUE(FitKernelHyperparameters(*kernel, Xs, Ys, ml, &kh).usable());
-    kernel->set_parameters(kh.kernel_parameters);
+    kernel->set_parameters(kh.shape);
     h.log_noise_std = kh.log_noise_std;
     h.log_output_scale = kh.log_output_scale;
     EXPECT_EQ(model->Fit(scenario.train.X, scenario.train.Y, h), Status::kOk);

@@ -26,7 +26,7 @@ Data MakeData(int m, int d, int P, unsigned seed) {
 
 TEST(GaussianProcess, AutoFormPicksTheCheaperForm) {
   auto map = std::make_shared<RandomFeatureMap>(4, 30, 3, 7);
-  const Hyperparameters h = Hyperparameters::Defaults(*map, 2);
+  const Hyperparameters h = DefaultHyperparameters(*map, 2);
   const Data many = MakeData(60, 4, 2, 1), few = MakeData(20, 4, 2, 2);
   GaussianProcess a(map, h, 2);
   ASSERT_EQ(a.Fit(many.X, many.Y), Status::kOk);
@@ -42,7 +42,7 @@ TEST(GaussianProcess, ForcedFormsAgree) {
   for (unsigned seed : {3u, 4u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     auto map = std::make_shared<RandomFeatureMap>(3, 25, 2, seed);
-    Hyperparameters h = Hyperparameters::Defaults(*map, 3);
+    Hyperparameters h = DefaultHyperparameters(*map, 3);
     h.log_noise_std = -1.5;
     h.log_output_scale << 0.1, -0.2, 0.3;
     const Data train = MakeData(40, 3, 3, seed + 10), test = MakeData(10, 3, 3, seed + 20);
@@ -76,7 +76,7 @@ TEST(GaussianProcess, ForcedFormsAgree) {
 
 TEST(GaussianProcess, BadInputThrowsOrReportsStatus) {
   auto map = std::make_shared<RandomFeatureMap>(3, 10, 1, 5);
-  GaussianProcess gp(map, Hyperparameters::Defaults(*map, 1), 1);
+  GaussianProcess gp(map, DefaultHyperparameters(*map, 1), 1);
   Data d = MakeData(20, 3, 1, 6);
   d.X(4, 2) = std::nan("");
   EXPECT_THROW(gp.Fit(d.X, d.Y), std::invalid_argument);

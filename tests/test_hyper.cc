@@ -115,7 +115,7 @@ TEST(HyperparameterLayout, NamesOrderAndRoundTrip) {
   EXPECT_EQ(layout.group(0), HyperparameterGroup::kShape);
   EXPECT_EQ(layout.group(4), HyperparameterGroup::kNoise);
 
-  Hyperparameters h = Hyperparameters::Defaults(map, 2);
+  Hyperparameters h = DefaultHyperparameters(map, 2);
   h.shape << 0.5;
   h.log_block_scale << 1.0, 2.0, 3.0;
   h.log_noise_std = -1.5;
@@ -124,7 +124,7 @@ TEST(HyperparameterLayout, NamesOrderAndRoundTrip) {
   Vector expected_x(7);
   expected_x << 0.5, 1.0, 2.0, 3.0, -1.5, 0.25, -0.75;
   EXPECT_EQ(x, expected_x);
-  Hyperparameters back = Hyperparameters::Defaults(map, 2);
+  Hyperparameters back = DefaultHyperparameters(map, 2);
   layout.Unflatten(x, &back);
   EXPECT_EQ(layout.Flatten(back), x);
 
@@ -196,7 +196,7 @@ TEST(MaximumLikelihoodOptions, Validation) {
 TEST(EvidenceObjective, GradientMatchesCentralDifferences) {
   auto rng = SeededRng(101);
   const auto map = Random(2, 24, 3, 7);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters truth = DefaultHyperparameters(*map, 2);
   truth.shape << 0.4;
   truth.log_output_scale << 0.3, -0.2;
   const Data d = SampleFromModel(*map, truth, RandomMatrix(200, 2, 1.0, &rng), &rng);
@@ -235,7 +235,7 @@ TEST(EvidenceObjective, GradientMatchesCentralDifferences) {
 TEST(EvidenceObjective, PolGradientMatchesCentralDifferences) {
   auto rng = SeededRng(102);
   const auto map = std::make_shared<PolFeatureMap>(1);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters truth = DefaultHyperparameters(*map, 1);
   const Data d = SampleFromModel(*map, truth, RandomStates(150, 1, &rng), &rng);
   const WeightSpaceEvidence evidence = MakeEvidence(map, d);
   Hyperparameters start = truth;
@@ -257,7 +257,7 @@ TEST(EvidenceObjective, PolGradientMatchesCentralDifferences) {
 TEST(EvidenceObjective, DeclinesOutsideBoundsAndCounts) {
   auto rng = SeededRng(103);
   const auto map = Random(2, 10, 1, 3);
-  const Hyperparameters h = Hyperparameters::Defaults(*map, 1);
+  const Hyperparameters h = DefaultHyperparameters(*map, 1);
   const Data d = SampleFromModel(*map, h, RandomMatrix(50, 2, 1.0, &rng), &rng);
   const WeightSpaceEvidence evidence = MakeEvidence(map, d);
   const EvidenceObjective objective(evidence, MaximumLikelihoodOptions(), h);
@@ -283,14 +283,14 @@ TEST(EvidenceObjective, DeclinesOutsideBoundsAndCounts) {
 TEST(FitHyperparameters, RecoversNoiseLevel) {
   auto rng = SeededRng(201);
   const auto map = Random(3, 30, 2, 21);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters truth = DefaultHyperparameters(*map, 2);
   truth.shape << 0.5;
   truth.log_block_scale << 0.3, -0.4;
   truth.log_noise_std = std::log(0.1);
   const Data d = SampleFromModel(*map, truth, RandomMatrix(2000, 3, 1.0, &rng), &rng);
   const WeightSpaceEvidence evidence = MakeEvidence(map, d);
 
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 2);
   hyper.log_noise_std = std::log(0.5);
   const MaximumLikelihoodOptions options;
   const MaximumLikelihoodSummary summary = FitHyperparameters(evidence, options, &hyper);
@@ -319,7 +319,7 @@ TEST(FitHyperparameters, PolMapRecoversNoiseLevel) {
   auto rng = SeededRng(202);
   const auto map = std::make_shared<PolFeatureMap>(2);
   ASSERT_EQ(map->dim(), 133);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters truth = DefaultHyperparameters(*map, 2);
   truth.shape << 0.3;
   truth.log_noise_std = std::log(0.1);
   const Data d = SampleFromModel(*map, truth, RandomStates(500, 2, &rng), &rng);
@@ -328,7 +328,7 @@ TEST(FitHyperparameters, PolMapRecoversNoiseLevel) {
   const double stats_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 2);
   hyper.log_noise_std = std::log(0.3);
   const MaximumLikelihoodSummary summary =
       FitHyperparameters(evidence, MaximumLikelihoodOptions(), &hyper);
@@ -361,7 +361,7 @@ TEST(FitHyperparameters, FailedFactorisationsAreReportedNeverNaN) {
   options.optimize_shape = false;
   options.noise_bounds = {-49.0, 3.0};
   options.block_scale_bounds = {-40.0, 40.0};
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 1);
   const MaximumLikelihoodSummary summary = FitHyperparameters(evidence, options, &hyper);
   std::cout << summary.BriefReport() << std::endl;
   std::cout << "log sigma_n = " << hyper.log_noise_std
@@ -394,7 +394,7 @@ TEST(FitHyperparameters, StartThatCannotBeEvaluatedLeavesHyperUnchanged) {
   MaximumLikelihoodOptions options;
   options.noise_bounds = {-49.0, 3.0};
   options.block_scale_bounds = {-40.0, 40.0};
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 1);
   hyper.log_noise_std = -45.0;  // sigma_n^2 = 1e-39: A = Phi^T Phi (rank 20 of 40) + ~0
   hyper.log_block_scale << 35.0;
   double lml = 0.0;
@@ -412,7 +412,7 @@ TEST(FitHyperparameters, StartThatCannotBeEvaluatedLeavesHyperUnchanged) {
 TEST(FitHyperparameters, NothingFreeAndBadStarts) {
   auto rng = SeededRng(205);
   const auto map = Random(2, 10, 2, 9);
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 1);
   const Data d = SampleFromModel(*map, hyper, RandomMatrix(60, 2, 1.0, &rng), &rng);
   const WeightSpaceEvidence evidence = MakeEvidence(map, d);
 
@@ -448,11 +448,11 @@ TEST(FitHyperparameters, NothingFreeAndBadStarts) {
 TEST(FitHyperparameters, MaxIterationsIsReported) {
   auto rng = SeededRng(206);
   const auto map = Random(3, 30, 2, 21);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters truth = DefaultHyperparameters(*map, 1);
   truth.shape << 0.5;
   const Data d = SampleFromModel(*map, truth, RandomMatrix(300, 3, 1.0, &rng), &rng);
   const WeightSpaceEvidence evidence = MakeEvidence(map, d);
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 1);
   hyper.log_noise_std = std::log(2.0);
   MaximumLikelihoodOptions options;
   options.max_iterations = 2;
@@ -469,7 +469,7 @@ TEST(FitHyperparameters, MaxIterationsIsReported) {
 TEST(KernelEvidenceObjective, GradientMatchesCentralDifferences) {
   auto rng = SeededRng(301);
   const auto map = Random(2, 16, 2, 13);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters truth = DefaultHyperparameters(*map, 2);
   truth.shape << 0.3;
   const Data d = SampleFromModel(*map, truth, RandomMatrix(60, 2, 1.0, &rng), &rng);
   Hyperparameters kernel_hyper = truth;
@@ -478,7 +478,7 @@ TEST(KernelEvidenceObjective, GradientMatchesCentralDifferences) {
   const FeatureKernel kernel(map, kernel_hyper);
   MaximumLikelihoodOptions options;
   options.optimize_output_scales = true;
-  KernelHyperparameters start = KernelHyperparameters::Defaults(kernel, 2);
+  Hyperparameters start = DefaultHyperparameters(kernel, 2);
   start.log_noise_std = std::log(0.2);
   start.log_output_scale << 0.2, -0.1;
   const KernelEvidenceObjective objective(kernel, d.X, d.Y, options, start);
@@ -505,12 +505,12 @@ TEST(FitKernelHyperparameters, RbfImprovesEvidence) {
   d.X = RandomMatrix(m, 1, 1.5, &rng);
   d.Y = (2.0 * d.X).array().sin().matrix() + RandomMatrix(m, 1, 0.1, &rng);
   const RbfKernel kernel(1, false, 5.0, 1.0);
-  KernelHyperparameters hyper = KernelHyperparameters::Defaults(kernel, 1);
+  Hyperparameters hyper = DefaultHyperparameters(kernel, 1);
   hyper.log_noise_std = std::log(0.5);
   const MaximumLikelihoodSummary summary =
       FitKernelHyperparameters(kernel, d.X, d.Y, MaximumLikelihoodOptions(), &hyper);
   std::cout << summary.BriefReport() << std::endl;
-  std::cout << "log l, log sf = " << hyper.kernel_parameters.transpose()
+  std::cout << "log l, log sf = " << hyper.shape.transpose()
             << ", sigma_n = " << std::exp(hyper.log_noise_std) << std::endl;
   const std::vector<std::string> expected = {"log_length_scale", "log_signal_std", "log_noise_std"};
   EXPECT_EQ(summary.parameter_names, expected);
@@ -520,7 +520,7 @@ TEST(FitKernelHyperparameters, RbfImprovesEvidence) {
   EXPECT_EQ(kernel.parameters()[0], std::log(5.0));  // the kernel passed in is not modified
   // The summary's value is the evidence of a KernelGP built from the result.
   std::unique_ptr<Kernel> fitted = kernel.Clone();
-  fitted->set_parameters(hyper.kernel_parameters);
+  fitted->set_parameters(hyper.shape);
   KernelGP model(*fitted, std::exp(2.0 * hyper.log_noise_std), 1);
   ASSERT_EQ(model.Fit(d.X, d.Y), Status::kOk);
   EXPECT_NEAR(-model.LogMarginalLikelihood(), summary.final_negative_log_likelihood,
@@ -534,21 +534,21 @@ TEST(FitKernelHyperparameters, RbfImprovesEvidence) {
 TEST(FitKernelHyperparameters, FeatureKernelMatchesWeightSpace) {
   auto rng = SeededRng(303);
   const auto map = Random(2, 12, 2, 17);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters truth = DefaultHyperparameters(*map, 2);
   truth.shape << 0.6;
   truth.log_block_scale << 0.4, -0.5;
   truth.log_noise_std = std::log(0.1);
   const Data d = SampleFromModel(*map, truth, RandomMatrix(150, 2, 1.0, &rng), &rng);
   const WeightSpaceEvidence evidence = MakeEvidence(map, d);
 
-  Hyperparameters weight_hyper = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters weight_hyper = DefaultHyperparameters(*map, 2);
   weight_hyper.log_noise_std = std::log(0.3);
   MaximumLikelihoodOptions options;
   const MaximumLikelihoodSummary weight_summary =
       FitHyperparameters(evidence, options, &weight_hyper);
 
-  const FeatureKernel kernel(map, Hyperparameters::Defaults(*map, 2));
-  KernelHyperparameters kernel_hyper = KernelHyperparameters::Defaults(kernel, 2);
+  const FeatureKernel kernel(map, DefaultHyperparameters(*map, 2));
+  Hyperparameters kernel_hyper = DefaultHyperparameters(kernel, 2);
   kernel_hyper.log_noise_std = std::log(0.3);
   const MaximumLikelihoodSummary kernel_summary =
       FitKernelHyperparameters(kernel, d.X, d.Y, options, &kernel_hyper);
@@ -567,7 +567,7 @@ TEST(FitKernelHyperparameters, FeatureKernelMatchesWeightSpace) {
               1e-8 * std::abs(weight_summary.final_negative_log_likelihood));
   Vector weight_x(4), kernel_x(4);
   weight_x << weight_hyper.shape, weight_hyper.log_block_scale, weight_hyper.log_noise_std;
-  kernel_x << kernel_hyper.kernel_parameters, kernel_hyper.log_noise_std;
+  kernel_x << kernel_hyper.shape, kernel_hyper.log_noise_std;
   std::cout << "weight space x = " << weight_x.transpose() << std::endl;
   std::cout << "kernel form  x = " << kernel_x.transpose() << std::endl;
   // Both are stationary to |gradient| <~ 1e-5 of an objective whose curvature is of order n:
@@ -647,7 +647,7 @@ CrossValidationResult RefitEachFold(const FeatureMap& map, const Data& d, int k,
 TEST(BlockedCrossValidation, SubtractedStatisticsEqualRefittingEachFold) {
   auto rng = SeededRng(401);
   const auto map = Random(3, 25, 2, 31);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters truth = DefaultHyperparameters(*map, 2);
   truth.shape << 0.2;
   const Data d = SampleFromModel(*map, truth, RandomMatrix(1100, 3, 1.0, &rng), &rng);
   Hyperparameters hyper = truth;
@@ -682,7 +682,7 @@ TEST(BlockedCrossValidation, SubtractedStatisticsEqualRefittingEachFold) {
 TEST(FoldStatistics, FoldsSumToTotal) {
   auto rng = SeededRng(402);
   const auto map = Random(2, 8, 1, 3);
-  const Data d = SampleFromModel(*map, Hyperparameters::Defaults(*map, 1),
+  const Data d = SampleFromModel(*map, DefaultHyperparameters(*map, 1),
                                  RandomMatrix(1300, 2, 1.0, &rng), &rng);  // > 2 chunks/fold
   const FoldStatistics data(*map, d.X, d.Y, 2);
   Matrix Phi;
@@ -706,7 +706,7 @@ TEST(FoldStatistics, FoldsSumToTotal) {
 TEST(SelectByCrossValidation, PicksTheLowestErrorOfAGrid) {
   auto rng = SeededRng(403);
   const auto map = std::make_shared<PolFeatureMap>(1);
-  Hyperparameters truth = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters truth = DefaultHyperparameters(*map, 1);
   truth.shape << 0.5;
   truth.log_noise_std = std::log(0.05);
   const Data d = SampleFromModel(*map, truth, RandomStates(400, 1, &rng), &rng);

@@ -16,7 +16,7 @@
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/hyper/evidence.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 
@@ -114,7 +114,7 @@ TEST(IllConditioned, ZeroVelocityUnderFrictionWithForgettingIsRefusedNotNaN) {
   auto pol = std::make_shared<const PolFeatureMap>(N);
   auto fri = std::make_shared<const FrictionFeatureMap>(N, 0.01);
   const SumFeatureMap map({pol, fri});
-  const Hyperparameters hyper = Hyperparameters::Defaults(map, N);
+  const Hyperparameters hyper = DefaultHyperparameters(map, N);
   const Vector lambda = PriorVariance(map, hyper);
   const Matrix X = RandomStates(N, 3000, 11, /*qd_range=*/0.0);
   Matrix Phi;
@@ -194,7 +194,7 @@ TEST(IllConditioned, PolShapeParameterAtExtremesGivesStatus) {
   int refused = 0;
   for (double log_sigma : {-30.0, -5.0, 0.0, 5.0, 30.0, 300.0, 700.0}) {
     SCOPED_TRACE("log sigma " + std::to_string(log_sigma));
-    Hyperparameters hyper = Hyperparameters::Defaults(*map, N);
+    Hyperparameters hyper = DefaultHyperparameters(*map, N);
     hyper.shape[0] = log_sigma;
     double lml = std::nan("");
     Hyperparameters gradient;

@@ -19,7 +19,7 @@
 
 #include "alloc_counter.h"
 #include "structgp/feature/random_feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/model/kernel_gp.h"
@@ -121,7 +121,7 @@ TEST(KernelGP, FeatureKernelMatchesWeightSpaceGP) {
                    std::to_string(D));
       auto rng = SeededRng(seed);
       auto map = std::make_shared<RandomFeatureMap>(3, D, 3, seed + 1000);
-      Hyperparameters h = Hyperparameters::Defaults(*map, P);
+      Hyperparameters h = DefaultHyperparameters(*map, P);
       h.shape = RandomVector(1, 0.3, &rng);
       h.log_block_scale = RandomVector(3, 0.3, &rng);
       h.log_noise_std = std::log(0.2);
@@ -168,7 +168,7 @@ TEST(KernelGP, FeatureKernelGradientMatchesWeightSpaceEvidenceGradient) {
   const int P = 2, D = 30, m = 45;
   auto rng = SeededRng(21);
   auto map = std::make_shared<RandomFeatureMap>(3, D, 4, 2100);
-  Hyperparameters h = Hyperparameters::Defaults(*map, P);
+  Hyperparameters h = DefaultHyperparameters(*map, P);
   h.shape << 0.2;
   h.log_block_scale = RandomVector(4, 0.3, &rng);
   h.log_noise_std = std::log(0.25);
@@ -348,7 +348,7 @@ double LikelihoodAt(const Kernel& prototype, const Vector& theta, double log_noi
 TEST(KernelGP, LikelihoodGradientMatchesCentralDifferences) {
   const int P = 2;
   auto map = std::make_shared<RandomFeatureMap>(3, 20, 3, 3100);
-  Hyperparameters h = Hyperparameters::Defaults(*map, P);
+  Hyperparameters h = DefaultHyperparameters(*map, P);
   h.shape << 0.3;
   h.log_block_scale << 0.2, -0.3, 0.1;
   std::vector<GradientCase> cases;
@@ -540,7 +540,7 @@ TEST_F(KernelGPFailures, CapacityExceeded) {
 TEST(KernelGP, RealTimePathDoesNotAllocate) {
   const int P = 3;
   auto map = std::make_shared<RandomFeatureMap>(6, 30, 3, 7100);
-  const Hyperparameters h = Hyperparameters::Defaults(*map, P);
+  const Hyperparameters h = DefaultHyperparameters(*map, P);
   const std::vector<std::shared_ptr<Kernel>> kernels = {
       std::make_shared<RbfKernel>(6, true, 1.0, 1.0), std::make_shared<RbfsKernel>(2, false),
       std::make_shared<FeatureKernel>(map, h)};

@@ -21,7 +21,7 @@
 
 #include "alloc_counter.h"
 #include "structgp/feature/random_feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
@@ -82,7 +82,7 @@ std::vector<KernelCase> AllKernels() {
                    }});
   cases.push_back({"feature_random", [] {
                      auto map = MakeRandomMap(3, 40, 3, 77);
-                     Hyperparameters h = Hyperparameters::Defaults(*map, 2);
+                     Hyperparameters h = DefaultHyperparameters(*map, 2);
                      h.shape << 0.3;
                      h.log_block_scale << 0.2, -0.5, 0.4;
                      return std::unique_ptr<Kernel>(std::make_unique<FeatureKernel>(map, h));
@@ -299,7 +299,7 @@ TEST(FeatureKernel, EqualsWeightedFeatureProduct) {
   const std::uint64_t map_seed = 91;
   std::cout << "[ seed     ] map " << map_seed << std::endl;
   auto map = MakeRandomMap(4, 30, 3, map_seed);
-  Hyperparameters h = Hyperparameters::Defaults(*map, 1);
+  Hyperparameters h = DefaultHyperparameters(*map, 1);
   h.shape << -0.4;
   h.log_block_scale << 0.3, 0.0, -0.7;
   FeatureKernel kernel(map, h);

@@ -22,7 +22,7 @@
 #include "feature_map_battery.h"
 #include "structgp/feature/nystrom_feature_map.h"
 #include "structgp/feature/pol_feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
@@ -100,7 +100,7 @@ TEST(NystromFeatureMap, BatteryWithRbfKernelAndRandomSubset) {
 // per-thread kernel copy gives the same features.
 TEST(NystromFeatureMap, BatteryWithFeatureKernelAndPerThreadKernels) {
   auto pol = std::make_shared<PolFeatureMap>(2);
-  const FeatureKernel kernel(pol, Hyperparameters::Defaults(*pol, 1));
+  const FeatureKernel kernel(pol, DefaultHyperparameters(*pol, 1));
   InducingOptions io;
   io.selection = InducingSelection::kFarthestPoint;
   const Matrix Z = SelectInducingStates(kernel, RandomStates(6, 200, kCandidateSeed), 30, io);

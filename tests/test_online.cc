@@ -29,7 +29,7 @@
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/random_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/weight_space_gp.h"
 #include "structgp/online/online_learner.h"
 #include "structgp/online/triple_buffer.h"
@@ -674,7 +674,7 @@ TEST(OnlineDrift, ForgettingKeepsErrorBoundedWhileNoForgettingGrows) {
 
   auto map = std::make_shared<SumFeatureMap>(std::vector<std::shared_ptr<const FeatureMap>>{
       std::make_shared<PolFeatureMap>(2), std::make_shared<FrictionFeatureMap>(2, 0.02)});
-  Hyperparameters hyper = Hyperparameters::Defaults(*map, 2);
+  Hyperparameters hyper = DefaultHyperparameters(*map, 2);
   hyper.log_block_scale[hyper.log_block_scale.size() - 1] = std::log(10.0);  // broad friction
   const Vector lambda = PriorVariance(*map, hyper);
   const Vector scales = (Y.array().square().colwise().mean().sqrt()).transpose();

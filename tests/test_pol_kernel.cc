@@ -19,7 +19,7 @@
 #include "alloc_counter.h"
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/pol_kernel_formula.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/model/kernel_gp.h"
@@ -47,7 +47,7 @@ Vector RandomState(int n, std::mt19937_64* rng) {
 
 // The same parameters for the feature kernel: shape (log sigma), block scales.
 Hyperparameters ToHyper(const PolFeatureMap& map, const Vector& theta) {
-  Hyperparameters h = Hyperparameters::Defaults(map, 1);
+  Hyperparameters h = DefaultHyperparameters(map, 1);
   h.shape[0] = theta[0];
   h.log_block_scale = theta.tail(theta.size() - 1);
   return h;
@@ -255,7 +255,7 @@ TEST(PolFormulaKernel, ParametersNamesAndClone) {
   EXPECT_EQ(kernel.parameter_names(), expected);
   // The same names, in the same order, as the feature kernel of the map.
   const auto map = std::make_shared<PolFeatureMap>(3);
-  FeatureKernel feature(map, Hyperparameters::Defaults(*map, 1));
+  FeatureKernel feature(map, DefaultHyperparameters(*map, 1));
   EXPECT_EQ(kernel.parameter_names(), feature.parameter_names());
   EXPECT_TRUE(kernel.parameters() == feature.parameters());
 

@@ -10,9 +10,11 @@
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/core/validate.h"
+#include "structgp/core/hyperparameters.h"
 
 // Feature maps: the structured kernels as explicit features, effects, sums, Nystrom.
 #include "structgp/feature/feature_map.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/pol_kernel_formula.h"
 #include "structgp/feature/gravity_basis_feature_map.h"
@@ -26,6 +28,7 @@
 
 // Kernels for the function-space (kernel) form.
 #include "structgp/kernel/kernel.h"
+#include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/feature_kernel.h"
@@ -40,7 +43,6 @@
 #include "structgp/model/robot_model.h"
 
 // Hyper-parameters: type-II maximum likelihood (Ceres) and blocked cross-validation.
-#include "structgp/hyper/hyperparameters.h"
 #include "structgp/hyper/hyperparameter_layout.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/hyper/marginal_likelihood.h"

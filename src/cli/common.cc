@@ -125,7 +125,7 @@ void FitKernelByEvidence(const Matrix& X, const Matrix& Y, const FitSettings& se
   // non-const, by the model; RobotModel offers no setter, so the fitted parameters are set
   // through the pointer it exposes.
   auto* kernel = const_cast<Kernel*>(model->kernel());
-  KernelHyperparameters kh = KernelHyperparameters::Defaults(*kernel, model->num_joints());
+  Hyperparameters kh = DefaultHyperparameters(*kernel, model->num_joints());
   kh.log_noise_std = h->log_noise_std;
   kh.log_output_scale = h->log_output_scale;
   const int rows = std::max(1, std::min(settings.ml_max_rows, static_cast<int>(X.rows())));
@@ -140,7 +140,7 @@ void FitKernelByEvidence(const Matrix& X, const Matrix& Y, const FitSettings& se
   const MaximumLikelihoodSummary summary = FitKernelHyperparameters(*kernel, Xs, Ys, options, &kh);
   if (!summary.usable()) throw NumericalError("type-II maximum likelihood: " + summary.message);
   progress.Line(summary.BriefReport());
-  kernel->set_parameters(kh.kernel_parameters);
+  kernel->set_parameters(kh.shape);
   h->log_noise_std = kh.log_noise_std;
   h->log_output_scale = kh.log_output_scale;
   info->method = Format("type-II maximum likelihood (%s, %d iterations)",

@@ -14,7 +14,7 @@
 #include "structgp/feature/effects.h"
 #include "structgp/feature/nystrom_feature_map.h"
 #include "structgp/hyper/evidence.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 
@@ -196,7 +196,7 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     const Matrix Z = SelectInducingStates(*model.kernel(), X,
                                           std::min(options.nystrom_features, m / 2));
     base_map = std::make_shared<NystromFeatureMap>(*model.kernel(), Z);
-    Hyperparameters h = Hyperparameters::Defaults(*base_map, N);
+    Hyperparameters h = DefaultHyperparameters(*base_map, N);
     h.log_noise_std = base_hyper.log_noise_std;
     h.log_output_scale = base_hyper.log_output_scale;
     base_hyper = h;

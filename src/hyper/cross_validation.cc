@@ -105,7 +105,7 @@ CrossValidationResult BlockedCrossValidation(const FeatureMap& map, const FoldSt
                                              const Hyperparameters& hyper) {
   RequireSize("BlockedCrossValidation statistics", data.num_features(), map.dim(), "features");
   const int P = data.num_outputs();
-  hyper.Validate(map, P);
+  ValidateHyperparameters(hyper, map, P);
   const Vector lambda = PriorVariance(map, hyper);
   WeightSpaceGP model(lambda, hyper.noise_variance(), P, hyper.output_scales());
 

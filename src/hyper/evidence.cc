@@ -38,7 +38,7 @@ WeightSpaceEvidence::WeightSpaceEvidence(std::shared_ptr<const FeatureMap> map,
 
 Status WeightSpaceEvidence::Evaluate(const Hyperparameters& hyper, double* lml,
                                      Hyperparameters* gradient) const {
-  hyper.Validate(*map_, stats_.num_outputs());
+  ValidateHyperparameters(hyper, *map_, stats_.num_outputs());
   const Vector lambda = PriorVariance(*map_, hyper);
   // Hyper-parameters far out (a shape parameter whose prior variances underflow, a noise of
   // 1e-300) give a prior the model cannot represent (weight_space_gp.h): an ordinary failed

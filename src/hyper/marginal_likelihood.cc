@@ -324,7 +324,7 @@ EvidenceObjective::EvidenceObjective(const WeightSpaceEvidence& evidence,
       base_(start) {
   options.Validate();
   const int num_outputs = evidence.statistics().num_outputs();
-  start.Validate(evidence.map(), num_outputs);
+  ValidateHyperparameters(start, evidence.map(), num_outputs);
   lower_.resize(layout_.size());
   upper_.resize(layout_.size());
   for (int i = 0; i < layout_.size(); ++i) {
@@ -394,30 +394,10 @@ MaximumLikelihoodSummary FitHyperparameters(const WeightSpaceEvidence& evidence,
 
 // ---- function space ---------------------------------------------------------------------------
 
-KernelHyperparameters KernelHyperparameters::Defaults(const Kernel& kernel, int num_outputs) {
-  if (num_outputs < 1) {
-    throw std::invalid_argument("KernelHyperparameters::Defaults: expected num_outputs >= 1, got " +
-                                std::to_string(num_outputs));
-  }
-  KernelHyperparameters h;
-  h.kernel_parameters = kernel.parameters();
-  h.log_output_scale = Vector::Zero(num_outputs);
-  return h;
-}
-
-void KernelHyperparameters::Validate(const Kernel& kernel, int num_outputs) const {
-  RequireSize("KernelHyperparameters.kernel_parameters", kernel_parameters.size(),
-              kernel.num_parameters());
-  RequireSize("KernelHyperparameters.log_output_scale", log_output_scale.size(), num_outputs);
-  RequireFinite("KernelHyperparameters.kernel_parameters", kernel_parameters);
-  RequireFinite("KernelHyperparameters.log_output_scale", log_output_scale);
-  RequireInRange("KernelHyperparameters.log_noise_std", log_noise_std, -kNoiseLimit, kNoiseLimit);
-}
-
 KernelEvidenceObjective::KernelEvidenceObjective(const Kernel& kernel, const ConstMatrixRef& X,
                                                  const ConstMatrixRef& Y,
                                                  const MaximumLikelihoodOptions& options,
-                                                 const KernelHyperparameters& start)
+                                                 const Hyperparameters& start)
     : kernel_(kernel.Clone()),
       X_(X),
       Y_(Y),
@@ -437,7 +417,7 @@ KernelEvidenceObjective::KernelEvidenceObjective(const Kernel& kernel, const Con
   RequireFinite("KernelEvidenceObjective X", X);
   RequireFinite("KernelEvidenceObjective Y", Y);
   const int num_outputs = static_cast<int>(Y.cols());
-  start.Validate(kernel, num_outputs);
+  ValidateHyperparameters(start, kernel, num_outputs);
   std::vector<double> lower, upper;
   auto add = [&](const std::string& name, const LogBounds& bounds) {
     names_.push_back(name);
@@ -461,26 +441,26 @@ KernelEvidenceObjective::KernelEvidenceObjective(const Kernel& kernel, const Con
   num_observations_ = static_cast<double>(X.rows()) * num_outputs;
 }
 
-Vector KernelEvidenceObjective::Flatten(const KernelHyperparameters& hyper) const {
-  hyper.Validate(*kernel_, static_cast<int>(Y_.cols()));
+Vector KernelEvidenceObjective::Flatten(const Hyperparameters& hyper) const {
+  ValidateHyperparameters(hyper, *kernel_, static_cast<int>(Y_.cols()));
   Vector x(num_parameters());
   Eigen::Index i = 0;
   if (free_kernel_) {
-    x.segment(i, hyper.kernel_parameters.size()) = hyper.kernel_parameters;
-    i += hyper.kernel_parameters.size();
+    x.segment(i, hyper.shape.size()) = hyper.shape;
+    i += hyper.shape.size();
   }
   if (free_noise_) x[i++] = hyper.log_noise_std;
   if (free_scales_) x.segment(i, hyper.log_output_scale.size()) = hyper.log_output_scale;
   return x;
 }
 
-KernelHyperparameters KernelEvidenceObjective::ToHyperparameters(const ConstVectorRef& x) const {
+Hyperparameters KernelEvidenceObjective::ToHyperparameters(const ConstVectorRef& x) const {
   RequireSize("KernelEvidenceObjective::ToHyperparameters x", x.size(), num_parameters());
-  KernelHyperparameters hyper = base_;
+  Hyperparameters hyper = base_;
   Eigen::Index i = 0;
   if (free_kernel_) {
-    hyper.kernel_parameters = x.segment(i, base_.kernel_parameters.size());
-    i += base_.kernel_parameters.size();
+    hyper.shape = x.segment(i, base_.shape.size());
+    i += base_.shape.size();
   }
   if (free_noise_) hyper.log_noise_std = x[i++];
   if (free_scales_) hyper.log_output_scale = x.segment(i, base_.log_output_scale.size());
@@ -494,8 +474,8 @@ bool KernelEvidenceObjective::Evaluate(const double* x, double* cost, double* gr
     ++num_out_of_bounds_;
     return false;
   }
-  const KernelHyperparameters hyper = ToHyperparameters(xv);
-  kernel_->set_parameters(hyper.kernel_parameters);
+  const Hyperparameters hyper = ToHyperparameters(xv);
+  kernel_->set_parameters(hyper.shape);
   const int num_outputs = static_cast<int>(Y_.cols());
   KernelGP model(*kernel_, std::exp(2.0 * hyper.log_noise_std), num_outputs,
                  hyper.log_output_scale.array().exp().matrix());
@@ -535,7 +515,7 @@ bool KernelEvidenceObjective::Evaluate(const double* x, double* cost, double* gr
 MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const ConstMatrixRef& X,
                                                   const ConstMatrixRef& Y,
                                                   const MaximumLikelihoodOptions& options,
-                                                  KernelHyperparameters* hyper) {
+                                                  Hyperparameters* hyper) {
   if (hyper == nullptr) throw std::invalid_argument("FitKernelHyperparameters: null hyper");
   const KernelEvidenceObjective objective(kernel, X, Y, options, *hyper);
   Vector x = objective.Flatten(*hyper);

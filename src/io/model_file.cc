@@ -624,7 +624,7 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
     RobotModel model(spec, num_joints, load_options);
     if (model.kernel() != nullptr) {
       if (kernel_parameters.size() != model.kernel()->num_parameters()) {
-        r.FailField("hyperparameters.kernel_parameters",
+        r.FailField("hyperparameters.shape",
                     "expected " + std::to_string(model.kernel()->num_parameters()) +
                         " values, got " + std::to_string(kernel_parameters.size()));
       }

@@ -11,7 +11,7 @@ namespace structgp {
 FeatureKernel::FeatureKernel(std::shared_ptr<const FeatureMap> map, const Hyperparameters& hyper)
     : map_(std::move(map)), hyper_(hyper) {
   if (map_ == nullptr) throw std::invalid_argument("FeatureKernel: the feature map is null");
-  hyper_.Validate(*map_, static_cast<int>(hyper_.log_output_scale.size()));
+  ValidateHyperparameters(hyper_, *map_, static_cast<int>(hyper_.log_output_scale.size()));
   blocks_ = map_->blocks();
   const int dim = map_->dim();
   phi_a_.resize(dim);

@@ -64,7 +64,7 @@ GaussianProcess::GaussianProcess(std::shared_ptr<const FeatureMap> map,
       batch_(batch) {
   ValidateBatch(batch_);
   if (!map_) throw std::invalid_argument("GaussianProcess: null feature map");
-  hyper_.Validate(*map_, num_outputs);
+  ValidateHyperparameters(hyper_, *map_, num_outputs);
   phi_.resize(map_->dim());
 }
 

@@ -135,7 +135,7 @@ void RobotModel::BuildKernel() {
     kernel_ = std::move(base);
     return;
   }
-  Hyperparameters h = Hyperparameters::Defaults(*extras, N);
+  Hyperparameters h = structgp::DefaultHyperparameters(*extras, N);
   h.log_block_scale.setConstant(std::log(options_.broad_prior_std));
   FeatureKernel extra_kernel(extras, h);
   kernel_ = std::make_unique<SumKernel>(std::vector<const Kernel*>{base.get(), &extra_kernel});
@@ -145,7 +145,7 @@ Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) cons
   RequireSize("RobotModel::DefaultHyperparameters Y", Y.cols(), num_joints_, "columns (joints)");
   Hyperparameters h;
   if (map_) {
-    h = Hyperparameters::Defaults(*map_, num_joints_);
+    h = structgp::DefaultHyperparameters(*map_, num_joints_);
     // Broad priors on everything that is not the base's own structure.
     const auto blocks = map_->blocks();
     int base_end = 0;

@@ -24,7 +24,7 @@
 #include "structgp/core/row_subset.h"  // SelectRows
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"
 
 namespace structgp {

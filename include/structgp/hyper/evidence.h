@@ -11,7 +11,7 @@
 
 #include "structgp/core/status.h"
 #include "structgp/feature/feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 

@@ -20,7 +20,7 @@
 
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 
 namespace structgp {
 

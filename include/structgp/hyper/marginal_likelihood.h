@@ -9,8 +9,8 @@
 /// - FitHyperparameters, weight space: a feature map's shape parameters, log block scales,
 ///   log noise std and log output scales, on cached SufficientStatistics
 ///   (WeightSpaceEvidence). Each evaluation costs O(D^3), independent of the number of samples.
-/// - FitKernelHyperparameters, function space: a Kernel's parameters, log noise std and log
-///   output scales, with KernelGP. Each evaluation costs O(m^3 + m^2 * num_parameters).
+/// - FitKernelHyperparameters, function space: a Kernel's parameters (Hyperparameters::shape,
+///   see core/hyperparameters.h), log noise std and log output scales, with KernelGP. Each evaluation costs O(m^3 + m^2 * num_parameters).
 ///
 /// The objective is f(x) = -log p(Y | x) / n over the flat vector x of the free
 /// hyper-parameters, n = m P the number of scalar observations: the division keeps f and its
@@ -28,7 +28,8 @@
 #include "structgp/core/types.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/hyper/hyperparameter_layout.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
+#include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
 
 namespace structgp {
@@ -205,23 +206,9 @@ MaximumLikelihoodSummary FitHyperparameters(const WeightSpaceEvidence& evidence,
                                             const MaximumLikelihoodOptions& options,
                                             Hyperparameters* hyper);
 
-/// Hyper-parameters of the function-space form: the Kernel's own parameters (in the layout
-/// of Kernel::parameters()), the noise and the output scales, as in KernelGP.
-struct KernelHyperparameters {
-  Vector kernel_parameters;
-  /// log sigma_n.
-  double log_noise_std = -2.302585092994046;  // log(0.1)
-  /// One per output; 0 for unit scale.
-  Vector log_output_scale;
-
-  /// The kernel's current parameters, sigma_n = 0.1, unit output scales.
-  static KernelHyperparameters Defaults(const Kernel& kernel, int num_outputs);
-  /// Throws std::invalid_argument when the sizes do not match or a value is not finite.
-  void Validate(const Kernel& kernel, int num_outputs) const;
-};
-
 /// The objective of FitKernelHyperparameters: f(x) = -log p(Y | x) / (m P) with KernelGP.
-/// Free entries, in order: the kernel parameters (names from Kernel::parameter_names()) when
+/// start (and every point) holds the kernel's parameters in shape and no block scales
+/// (kernel/kernel_hyperparameters.h). Free entries, in order: the kernel parameters (names from Kernel::parameter_names()) when
 /// optimize_kernel_parameters, "log_noise_std" when optimize_noise, "log_output_scale_<j>"
 /// (j = 1..P) when optimize_output_scales. Keeps its own copies of the kernel and the data.
 /// Not safe for concurrent calls.
@@ -231,7 +218,7 @@ class KernelEvidenceObjective {
   /// invalid options, sizes or values.
   KernelEvidenceObjective(const Kernel& kernel, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                           const MaximumLikelihoodOptions& options,
-                          const KernelHyperparameters& start);
+                          const Hyperparameters& start);
 
   int num_parameters() const { return static_cast<int>(names_.size()); }
   const std::vector<std::string>& names() const { return names_; }
@@ -243,9 +230,9 @@ class KernelEvidenceObjective {
   bool Evaluate(const double* x, double* cost, double* gradient) const;
 
   /// The free entries of hyper, in the order above.
-  Vector Flatten(const KernelHyperparameters& hyper) const;
+  Vector Flatten(const Hyperparameters& hyper) const;
   /// start with its free entries replaced by x.
-  KernelHyperparameters ToHyperparameters(const ConstVectorRef& x) const;
+  Hyperparameters ToHyperparameters(const ConstVectorRef& x) const;
 
   int num_evaluations() const { return num_evaluations_; }
   int num_failed_evaluations() const { return num_failed_; }
@@ -255,7 +242,7 @@ class KernelEvidenceObjective {
   std::unique_ptr<Kernel> kernel_;
   Matrix X_, Y_;
   bool free_kernel_, free_noise_, free_scales_;
-  KernelHyperparameters base_;
+  Hyperparameters base_;
   std::vector<std::string> names_;
   Vector lower_, upper_;
   double num_observations_;
@@ -266,16 +253,18 @@ class KernelEvidenceObjective {
 
 /// Maximises log p(Y | hyper) of a KernelGP with the given kernel over the free entries of
 /// *hyper (optimize_kernel_parameters, optimize_noise, optimize_output_scales), starting from
-/// *hyper. On return *hyper holds the best point evaluated (unchanged when the start could
-/// not be evaluated). The kernel itself is not modified: set its parameters from
-/// hyper->kernel_parameters. With a FeatureKernel the result is the weight-space optimum of
+/// *hyper, whose shape holds the kernel's parameters (kernel/kernel_hyperparameters.h; the
+/// kernel's own parameters are not used). On return *hyper holds the best point evaluated
+/// (unchanged when the start could not be evaluated); the kernel is not modified. A model is
+/// fitted with the result by RobotModel::Fit(X, Y, *hyper) or
+/// KernelGP(*kernel.WithParameters(hyper->shape), ...). With a FeatureKernel the result is the weight-space optimum of
 /// FitHyperparameters (the same likelihood), at O(m^3) per evaluation instead of O(D^3).
 /// Throws std::invalid_argument on invalid options, sizes, values, or a free starting value
 /// outside its bounds.
 MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const ConstMatrixRef& X,
                                                   const ConstMatrixRef& Y,
                                                   const MaximumLikelihoodOptions& options,
-                                                  KernelHyperparameters* hyper);
+                                                  Hyperparameters* hyper);
 
 }  // namespace structgp
 

@@ -13,7 +13,7 @@
 
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
 
 namespace structgp {

@@ -13,7 +13,7 @@
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
-#include "structgp/hyper/hyperparameters.h"
+#include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/model/kernel_gp.h"
 #include "structgp/model/sufficient_statistics.h"
