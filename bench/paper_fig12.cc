@@ -432,14 +432,12 @@ std::unique_ptr<Kernel> MakeKernel(const ModelKind& kind, const Problem& p) {
     auto k = std::make_unique<RbfKernel>(3 * n, /*ard=*/true);
     Vector theta(3 * n + 1);
     theta << spread.array().log().matrix(), std::log(signal);
-    k->set_parameters(theta);
-    base = std::move(k);
+    base = k->WithParameters(theta);
   } else {
     auto k = std::make_unique<RbfsKernel>(n, /*ard=*/true);
     Vector theta(3 * n + 1);
     theta << Vector::Zero(n), spread.tail(2 * n).array().log().matrix(), std::log(signal);
-    k->set_parameters(theta);
-    base = std::move(k);
+    base = k->WithParameters(theta);
   }
   if (!kind.friction) return base;
   auto friction_map = std::make_shared<FrictionFeatureMap>(n, RobotModelOptions().friction_width);
@@ -470,7 +468,7 @@ FitResult FitKernelForm(const ModelKind& kind, const Problem& p, const Flags& f,
   if (!s.usable()) return result;
   result.kernel_parameters = hyper.shape;
   result.log_noise_std = hyper.log_noise_std;
-  kernel->set_parameters(hyper.shape);
+  kernel = kernel->WithParameters(hyper.shape);
   Matrix alpha;
   if (!SolveKernelSystem(*kernel, p.X_train, p.Y_train, std::exp(2.0 * hyper.log_noise_std),
                          &alpha)) {

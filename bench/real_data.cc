@@ -535,7 +535,7 @@ std::unique_ptr<Kernel> MakeKernel(const std::string& base, bool friction, const
     RbfKernel rbf(3 * n, /*ard=*/true);
     Vector theta(3 * n + 1);
     theta << spread.array().log().matrix(), std::log(0.3);
-    rbf.set_parameters(theta);
+    rbf = Reparameterized(rbf, theta);
     k = std::make_unique<SumKernel>(std::vector<const Kernel*>{&pol, &rbf});
   } else if (base == "pol") {
     k = std::make_unique<PolFormulaKernel>(n);
@@ -543,14 +543,12 @@ std::unique_ptr<Kernel> MakeKernel(const std::string& base, bool friction, const
     auto rbf = std::make_unique<RbfKernel>(3 * n, /*ard=*/true);
     Vector theta(3 * n + 1);
     theta << spread.array().log().matrix(), 0.0;
-    rbf->set_parameters(theta);
-    k = std::move(rbf);
+    k = rbf->WithParameters(theta);
   } else {
     auto rbfs = std::make_unique<RbfsKernel>(n, /*ard=*/true);
     Vector theta(3 * n + 1);
     theta << Vector::Zero(n), spread.tail(2 * n).array().log().matrix(), 0.0;
-    rbfs->set_parameters(theta);
-    k = std::move(rbfs);
+    k = rbfs->WithParameters(theta);
   }
   if (!friction) return k;
   const auto map = FrictionMap(n);
@@ -588,7 +586,7 @@ Result FitKernelForm(const Split& s, const std::string& model_name, const Flags&
   note << "ML-II on " << ml_index.size() << " rows: " << MlNote(ml);
   r.note = note.str();
   if (!ml.usable()) return r;
-  kernel->set_parameters(hyper.shape);
+  kernel = kernel->WithParameters(hyper.shape);
   if (f.verbose) {
     const std::vector<std::string> names = kernel->parameter_names();
     std::printf("%s fitted:", model_name.c_str());

@@ -154,7 +154,9 @@ TEST(GaussianProcessBatch, FunctionSpaceTakesAnEvenlySpacedSubsetBeyondTheLimit)
   const Data data = MakeData(230, 3, 2, kSeed + 5);
   BatchFitOptions batch;
   batch.max_kernel_rows = 50;
-  GaussianProcess gp(kernel, 0.1, 2, Vector(), batch);
+  Hyperparameters h = DefaultHyperparameters(kernel, 2);
+  h.log_noise_std = 0.5 * std::log(0.1);
+  GaussianProcess gp(kernel, h, 2, batch);
   ASSERT_EQ(gp.Fit(data.X, data.Y), Status::kOk);
   EXPECT_TRUE(gp.subsampled());
   EXPECT_EQ(gp.fit_rows(), 50);
@@ -165,7 +167,7 @@ TEST(GaussianProcessBatch, FunctionSpaceTakesAnEvenlySpacedSubsetBeyondTheLimit)
     Xs.row(k) = data.X.row(k * 230 / 50);
     Ys.row(k) = data.Y.row(k * 230 / 50);
   }
-  KernelGP reference(kernel, 0.1, 2);
+  KernelGP reference(kernel, h.noise_variance(), 2);
   ASSERT_EQ(reference.Fit(Xs, Ys), Status::kOk);
   EXPECT_EQ(gp.function_space()->inputs(), reference.inputs());
   Vector a(2), b(2);
@@ -175,7 +177,7 @@ TEST(GaussianProcessBatch, FunctionSpaceTakesAnEvenlySpacedSubsetBeyondTheLimit)
   EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-12);
   // No limit: every row.
   batch.max_kernel_rows = 0;
-  GaussianProcess all(kernel, 0.1, 2, Vector(), batch);
+  GaussianProcess all(kernel, h, 2, batch);
   ASSERT_EQ(all.Fit(data.X, data.Y), Status::kOk);
   EXPECT_FALSE(all.subsampled());
   EXPECT_EQ(all.function_space()->size(), 230);
@@ -187,7 +189,7 @@ TEST(GaussianProcessBatch, FunctionSpaceTakesAnEvenlySpacedSubsetBeyondTheLimit)
   ASSERT_EQ(pol.Fit(states.X, states.Y), Status::kOk);
   EXPECT_EQ(pol.function_space()->size(), 40);
   batch.num_threads = 0;
-  EXPECT_THROW(GaussianProcess(kernel, 0.1, 2, Vector(), batch), std::invalid_argument);
+  EXPECT_THROW(GaussianProcess(kernel, h, 2, batch), std::invalid_argument);
 }
 
 }  // namespace

@@ -205,10 +205,8 @@ TEST(FunctionSpacePol, DiagnosisNamesCoulombOnFourJoints) {
   auto fit = [&](const ModelSpec& spec) {
     auto model = std::make_unique<RobotModel>(spec, 4);
     EXPECT_EQ(model->feature_map(), nullptr);
-    auto* kernel = const_cast<Kernel*>(model->kernel());
-    Hyperparameters kh = DefaultHyperparameters(*kernel, 4);
+    // The kernel's default parameters in h.shape, the torque spread in the output scales.
     Hyperparameters h = model->DefaultHyperparameters(scenario.train.Y);
-    kh.log_output_scale = h.log_output_scale;
     // Every third row for the evidence: O(m^3) per evaluation.
     const int rows = static_cast<int>(scenario.train.X.rows()) / 3;
     Matrix Xs(rows, scenario.train.X.cols()), Ys(rows, 4);
@@ -218,10 +216,7 @@ TEST(FunctionSpacePol, DiagnosisNamesCoulombOnFourJoints) {
     }
     MaximumLikelihoodOptions ml;
     ml.max_iterations = 60;
-    EXPECT_TRUE(FitKernelHyperparameters(*kernel, Xs, Ys, ml, &kh).usable());
-    kernel->set_parameters(kh.shape);
-    h.log_noise_std = kh.log_noise_std;
-    h.log_output_scale = kh.log_output_scale;
+    EXPECT_TRUE(FitKernelHyperparameters(*model->kernel(), Xs, Ys, ml, &h).usable());
     EXPECT_EQ(model->Fit(scenario.train.X, scenario.train.Y, h), Status::kOk);
     return model;
   };

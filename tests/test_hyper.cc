@@ -520,7 +520,7 @@ TEST(FitKernelHyperparameters, RbfImprovesEvidence) {
   EXPECT_EQ(kernel.parameters()[0], std::log(5.0));  // the kernel passed in is not modified
   // The summary's value is the evidence of a KernelGP built from the result.
   std::unique_ptr<Kernel> fitted = kernel.Clone();
-  fitted->set_parameters(hyper.shape);
+  fitted = fitted->WithParameters(hyper.shape);
   KernelGP model(*fitted, std::exp(2.0 * hyper.log_noise_std), 1);
   ASSERT_EQ(model.Fit(d.X, d.Y), Status::kOk);
   EXPECT_NEAR(-model.LogMarginalLikelihood(), summary.final_negative_log_likelihood,

@@ -217,7 +217,7 @@ TEST(KernelGP, AddsEqualBatchFit) {
   const Data d = MakeData(m, n_dim, P, &rng);
   const Vector scales = (RandomVector(P, 0.3, &rng)).array().exp();
   RbfKernel kernel(n_dim, true, 1.2, 1.0);
-  kernel.set_parameters(RandomVector(n_dim + 1, 0.2, &rng));
+  kernel = Reparameterized(kernel, RandomVector(n_dim + 1, 0.2, &rng));
 
   KernelGP online(kernel, 0.09, P, scales);
   online.Reserve(m);
@@ -335,7 +335,7 @@ struct GradientCase {
 double LikelihoodAt(const Kernel& prototype, const Vector& theta, double log_noise_std,
                     const Vector& log_scales, const Data& d) {
   auto kernel = prototype.Clone();
-  kernel->set_parameters(theta);
+  kernel = kernel->WithParameters(theta);
   KernelGP model(*kernel, std::exp(2.0 * log_noise_std), static_cast<int>(log_scales.size()),
                  log_scales.array().exp().matrix());
   EXPECT_EQ(model.Fit(d.X, d.Y), Status::kOk);
@@ -362,17 +362,17 @@ TEST(KernelGP, LikelihoodGradientMatchesCentralDifferences) {
     auto rng = SeededRng(seed++);
     const Data d = MakeData(35, c.input_dim, P, &rng);
     Vector theta = c.kernel->parameters() + RandomVector(c.kernel->num_parameters(), 0.1, &rng);
-    c.kernel->set_parameters(theta);
+    const std::shared_ptr<Kernel> kernel = c.kernel->WithParameters(theta);
     const double log_noise = std::log(0.3);
     const Vector log_scales = RandomVector(P, 0.3, &rng);
 
-    KernelGP model(*c.kernel, std::exp(2.0 * log_noise), P, log_scales.array().exp().matrix());
+    KernelGP model(*kernel, std::exp(2.0 * log_noise), P, log_scales.array().exp().matrix());
     ASSERT_EQ(model.Fit(d.X, d.Y), Status::kOk);
     Vector dk, ds;
     double dn = 0.0;
     const double value = model.LogMarginalLikelihood(&dk, &dn, &ds);
     EXPECT_EQ(value, model.LogMarginalLikelihood());
-    EXPECT_NEAR(value, LikelihoodAt(*c.kernel, theta, log_noise, log_scales, d),
+    EXPECT_NEAR(value, LikelihoodAt(*kernel, theta, log_noise, log_scales, d),
                 1e-12 * std::abs(value));
 
     const double step = 1e-5;
@@ -384,17 +384,17 @@ TEST(KernelGP, LikelihoodGradientMatchesCentralDifferences) {
       Vector tp = theta, tm = theta;
       tp[p] += step;
       tm[p] -= step;
-      check(dk[p], LikelihoodAt(*c.kernel, tp, log_noise, log_scales, d),
-            LikelihoodAt(*c.kernel, tm, log_noise, log_scales, d), c.kernel->parameter_names()[p]);
+      check(dk[p], LikelihoodAt(*kernel, tp, log_noise, log_scales, d),
+            LikelihoodAt(*kernel, tm, log_noise, log_scales, d), kernel->parameter_names()[p]);
     }
-    check(dn, LikelihoodAt(*c.kernel, theta, log_noise + step, log_scales, d),
-          LikelihoodAt(*c.kernel, theta, log_noise - step, log_scales, d), "log_noise_std");
+    check(dn, LikelihoodAt(*kernel, theta, log_noise + step, log_scales, d),
+          LikelihoodAt(*kernel, theta, log_noise - step, log_scales, d), "log_noise_std");
     for (int j = 0; j < P; ++j) {
       Vector sp = log_scales, sm = log_scales;
       sp[j] += step;
       sm[j] -= step;
-      check(ds[j], LikelihoodAt(*c.kernel, theta, log_noise, sp, d),
-            LikelihoodAt(*c.kernel, theta, log_noise, sm, d),
+      check(ds[j], LikelihoodAt(*kernel, theta, log_noise, sp, d),
+            LikelihoodAt(*kernel, theta, log_noise, sm, d),
             "log_output_scale " + std::to_string(j));
     }
   }

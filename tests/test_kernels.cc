@@ -67,8 +67,7 @@ std::vector<KernelCase> AllKernels() {
                      auto k = std::make_unique<RbfKernel>(5, true, 1.0, 0.7);
                      Vector theta(6);
                      theta << -0.3, 0.2, 0.5, -0.1, 0.0, 0.4;
-                     k->set_parameters(theta);
-                     return std::unique_ptr<Kernel>(std::move(k));
+                     return k->WithParameters(theta);
                    }});
   cases.push_back(
       {"rbfs_iso",
@@ -77,8 +76,7 @@ std::vector<KernelCase> AllKernels() {
                      auto k = std::make_unique<RbfsKernel>(2, true);
                      Vector theta(7);
                      theta << 0.1, -0.2, 0.3, 0.0, -0.4, 0.25, 0.15;
-                     k->set_parameters(theta);
-                     return std::unique_ptr<Kernel>(std::move(k));
+                     return k->WithParameters(theta);
                    }});
   cases.push_back({"feature_random", [] {
                      auto map = MakeRandomMap(3, 40, 3, 77);
@@ -91,15 +89,13 @@ std::vector<KernelCase> AllKernels() {
                      auto k = std::make_unique<PolFormulaKernel>(2);
                      Vector theta(4);
                      theta << -0.5, 0.3, -0.2, 0.1;
-                     k->set_parameters(theta);
-                     return std::unique_ptr<Kernel>(std::move(k));
+                     return k->WithParameters(theta);
                    }});
   cases.push_back({"pol_formula_5_gravity_free", [] {
                      auto k = std::make_unique<PolFormulaKernel>(5, PolOptions{false});
                      Vector theta(3);
                      theta << 0.4, -0.3, 0.2;
-                     k->set_parameters(theta);
-                     return std::unique_ptr<Kernel>(std::move(k));
+                     return k->WithParameters(theta);
                    }});
   return cases;
 }
@@ -146,16 +142,20 @@ TEST_P(KernelBattery, ParametersRoundTripAndClone) {
   EXPECT_EQ(clone->Evaluate(a, b), kernel->Evaluate(a, b));
 
   const Vector changed = theta + RandomVector(kernel->num_parameters(), 0.2, &rng);
-  kernel->set_parameters(changed);
-  EXPECT_TRUE(kernel->parameters().isApprox(changed, 1e-15));
-  EXPECT_NE(kernel->Evaluate(a, b), clone->Evaluate(a, b));  // the clone is independent
-  EXPECT_TRUE(clone->parameters() == theta);
+  const auto moved = kernel->WithParameters(changed);
+  EXPECT_TRUE(moved->parameters().isApprox(changed, 1e-15));
+  EXPECT_EQ(typeid(*moved), typeid(*kernel));
+  EXPECT_NE(moved->Evaluate(a, b), kernel->Evaluate(a, b));
+  // The kernel itself is unchanged, and WithParameters at its own parameters is a copy.
+  EXPECT_TRUE(kernel->parameters() == theta);
+  EXPECT_EQ(kernel->Evaluate(a, b), clone->Evaluate(a, b));
+  EXPECT_EQ(kernel->WithParameters(theta)->Evaluate(a, b), kernel->Evaluate(a, b));
 
-  EXPECT_THROW(kernel->set_parameters(Vector::Zero(kernel->num_parameters() + 1)),
+  EXPECT_THROW(kernel->WithParameters(Vector::Zero(kernel->num_parameters() + 1)),
                std::invalid_argument);
   Vector bad = changed;
   bad[0] = std::nan("");
-  EXPECT_THROW(kernel->set_parameters(bad), std::invalid_argument);
+  EXPECT_THROW(kernel->WithParameters(bad), std::invalid_argument);
 }
 
 // Central differences with step h on the log parameters: truncation error h^2 |k'''| / 6 and
@@ -180,11 +180,8 @@ TEST_P(KernelBattery, GradientMatchesCentralDifferences) {
       Vector tp = theta, tm = theta;
       tp[p] += h;
       tm[p] -= h;
-      kernel->set_parameters(tp);
-      const double kp = kernel->Evaluate(a, b);
-      kernel->set_parameters(tm);
-      const double km = kernel->Evaluate(a, b);
-      kernel->set_parameters(theta);
+      const double kp = kernel->WithParameters(tp)->Evaluate(a, b);
+      const double km = kernel->WithParameters(tm)->Evaluate(a, b);
       const double fd = (kp - km) / (2 * h);
       EXPECT_NEAR(dk[p], fd, 1e-7 * (scale + std::abs(fd)))
           << "parameter " << kernel->parameter_names()[p] << ", trial " << trial;
@@ -234,7 +231,7 @@ TEST(RbfKernel, ClosedForm) {
   RbfKernel ard(2, true, 1.0, 1.0);
   Vector theta(3);
   theta << std::log(0.5), std::log(4.0), 0.0;
-  ard.set_parameters(theta);
+  ard = Reparameterized(ard, theta);
   // r^2 = 1 / 0.25 + 4 / 16 = 4.25.
   EXPECT_NEAR(ard.Evaluate(a, b), std::exp(-0.5 * 4.25), 1e-15);
   EXPECT_EQ(ard.parameter_names()[1], "log_length_scale_2");
@@ -262,11 +259,11 @@ TEST(RbfsKernel, EqualsRbfOnTrigonometricTransform) {
   // ARD: the angle's length scale is shared by its cos and sin.
   RbfsKernel rbfs_ard(N, true);
   Vector theta = RandomVector(3 * N + 1, 0.3, &rng);
-  rbfs_ard.set_parameters(theta);
+  rbfs_ard = Reparameterized(rbfs_ard, theta);
   RbfKernel rbf_ard(4 * N, true);
   Vector theta_z(4 * N + 1);
   theta_z << theta.head(N), theta.head(N), theta.segment(N, 2 * N), theta[3 * N];
-  rbf_ard.set_parameters(theta_z);
+  rbf_ard = Reparameterized(rbf_ard, theta_z);
 
   for (int trial = 0; trial < 20; ++trial) {
     const Vector a = RandomVector(3 * N, 2.0, &rng);
@@ -327,10 +324,10 @@ TEST(FeatureKernel, EqualsWeightedFeatureProduct) {
   expected_theta << -0.4, 0.3, 0.0, -0.7;
   EXPECT_TRUE(kernel.parameters() == expected_theta);
 
-  // set_parameters changes Lambda as PriorVariance would.
+  // WithParameters changes Lambda as PriorVariance would.
   Vector theta(4);
   theta << 0.2, -0.1, 0.5, 0.0;
-  kernel.set_parameters(theta);
+  kernel = Reparameterized(kernel, theta);
   h.shape << 0.2;
   h.log_block_scale << -0.1, 0.5, 0.0;
   EXPECT_TRUE(kernel.prior_variance().isApprox(PriorVariance(*map, h), 1e-15));

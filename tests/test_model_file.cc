@@ -195,13 +195,11 @@ TEST(ModelFile, FunctionSpaceRbfRoundTripsExactly) {
   ModelSpec spec = ParseModelSpec("rbf+fri");
   const sim::Dataset& train = Scenario().train;
   RobotModel model(spec, train.num_joints());
-  // Kernel parameters away from their defaults, as a hyper-parameter fit leaves them.
-  Vector theta = model.kernel()->parameters();
-  for (Eigen::Index i = 0; i < theta.size(); ++i) theta[i] += 0.1 * static_cast<double>(i % 3);
-  const_cast<Kernel*>(model.kernel())->set_parameters(theta);
   const Matrix X = train.X.topRows(300);
   const Matrix Y = train.Y.topRows(300);
   Hyperparameters h = model.DefaultHyperparameters(Y);
+  // Kernel parameters away from their defaults, as a hyper-parameter fit leaves them.
+  for (Eigen::Index i = 0; i < h.shape.size(); ++i) h.shape[i] += 0.1 * static_cast<double>(i % 3);
   h.log_noise_std = std::log(0.03);
   ASSERT_EQ(model.Fit(X, Y, h), Status::kOk);
   ASSERT_NE(model.gp().function_space(), nullptr);

@@ -152,7 +152,7 @@ TEST(NystromFeatureMap, PolFastPathEqualsGenericPath) {
       po.include_gravity = gravity;
       PolFormulaKernel kernel(n, po);
       Vector p = Vector::LinSpaced(kernel.num_parameters(), -0.4, 0.3);  // not the defaults
-      kernel.set_parameters(p);
+      kernel = Reparameterized(kernel, p);
       const Matrix Z = RandomStates(3 * n, 50, kCandidateSeed);
       const NystromFeatureMap map(kernel, Z);
       ASSERT_TRUE(map.uses_pol_fast_path());

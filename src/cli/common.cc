@@ -121,13 +121,8 @@ void FitFeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, const FitS
 void FitKernelByEvidence(const Matrix& X, const Matrix& Y, const FitSettings& settings,
                          const Progress& progress, RobotModel* model, Hyperparameters* h,
                          FitInfo* info) {
-  // RobotModel fits rbf bases with its kernel's current parameters. The kernel is owned,
-  // non-const, by the model; RobotModel offers no setter, so the fitted parameters are set
-  // through the pointer it exposes.
-  auto* kernel = const_cast<Kernel*>(model->kernel());
-  Hyperparameters kh = DefaultHyperparameters(*kernel, model->num_joints());
-  kh.log_noise_std = h->log_noise_std;
-  kh.log_output_scale = h->log_output_scale;
+  // *h holds the kernel's default parameters in shape (RobotModel::DefaultHyperparameters);
+  // the fitted ones replace them, and RobotModel::Fit(X, Y, *h) then uses them.
   const int rows = std::max(1, std::min(settings.ml_max_rows, static_cast<int>(X.rows())));
   const Matrix Xs = EvenlySpacedRows(X, rows);
   const Matrix Ys = EvenlySpacedRows(Y, rows);
@@ -137,12 +132,10 @@ void FitKernelByEvidence(const Matrix& X, const Matrix& Y, const FitSettings& se
              rows, static_cast<int>(X.rows())));
   MaximumLikelihoodOptions options;
   options.verbose = settings.verbose;
-  const MaximumLikelihoodSummary summary = FitKernelHyperparameters(*kernel, Xs, Ys, options, &kh);
+  const MaximumLikelihoodSummary summary =
+      FitKernelHyperparameters(*model->kernel(), Xs, Ys, options, h);
   if (!summary.usable()) throw NumericalError("type-II maximum likelihood: " + summary.message);
   progress.Line(summary.BriefReport());
-  kernel->set_parameters(kh.shape);
-  h->log_noise_std = kh.log_noise_std;
-  h->log_output_scale = kh.log_output_scale;
   info->method = Format("type-II maximum likelihood (%s, %d iterations)",
                         ToString(summary.termination), summary.iterations);
   if (rows < X.rows()) {

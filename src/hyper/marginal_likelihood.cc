@@ -475,9 +475,9 @@ bool KernelEvidenceObjective::Evaluate(const double* x, double* cost, double* gr
     return false;
   }
   const Hyperparameters hyper = ToHyperparameters(xv);
-  kernel_->set_parameters(hyper.shape);
+  const std::unique_ptr<Kernel> kernel = kernel_->WithParameters(hyper.shape);
   const int num_outputs = static_cast<int>(Y_.cols());
-  KernelGP model(*kernel_, std::exp(2.0 * hyper.log_noise_std), num_outputs,
+  KernelGP model(*kernel, std::exp(2.0 * hyper.log_noise_std), num_outputs,
                  hyper.log_output_scale.array().exp().matrix());
   if (model.Fit(X_, Y_) != Status::kOk) {
     ++num_failed_;

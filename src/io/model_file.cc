@@ -401,15 +401,15 @@ std::string ModelFileText(const RobotModel& model) {
   doc["num_features"] = model.feature_map() ? model.feature_map()->dim() : 0;
   doc["form"] = ToString(gp.form());
 
+  // The file keeps a kernel's parameters (Hyperparameters::shape of a kernel model) in
+  // "kernel_parameters" and an empty "shape", as it always has.
+  const bool kernel_model = model.kernel() != nullptr;
   Json hyper;
-  hyper["shape"] = NumberArray(h.shape);
+  hyper["shape"] = NumberArray(kernel_model ? Vector() : h.shape);
   hyper["log_block_scale"] = NumberArray(h.log_block_scale);
   hyper["log_noise_std"] = h.log_noise_std;
   hyper["log_output_scale"] = NumberArray(h.log_output_scale);
-  const Vector kernel_parameters =
-      model.kernel() != nullptr ? model.kernel()->parameters() : Vector();
-  RequireFiniteForSave("kernel parameters", kernel_parameters);
-  hyper["kernel_parameters"] = NumberArray(kernel_parameters);
+  hyper["kernel_parameters"] = NumberArray(kernel_model ? h.shape : Vector());
   doc["hyperparameters"] = hyper;
 
   const double lml = gp.LogMarginalLikelihood();
@@ -624,13 +624,11 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
     RobotModel model(spec, num_joints, load_options);
     if (model.kernel() != nullptr) {
       if (kernel_parameters.size() != model.kernel()->num_parameters()) {
-        r.FailField("hyperparameters.shape",
+        r.FailField("hyperparameters.kernel_parameters",
                     "expected " + std::to_string(model.kernel()->num_parameters()) +
                         " values, got " + std::to_string(kernel_parameters.size()));
       }
-      // RobotModel fits rbf bases with its kernel's current parameters; the kernel is owned,
-      // non-const, by the model.
-      const_cast<Kernel*>(model.kernel())->set_parameters(kernel_parameters);
+      hyper.shape = kernel_parameters;
     }
     const Status status = model.Fit(X, Y, hyper);
     if (status != Status::kOk) {

@@ -38,9 +38,15 @@ Vector FeatureKernel::parameters() const {
   return theta;
 }
 
-void FeatureKernel::set_parameters(const ConstVectorRef& theta) {
-  RequireSize("FeatureKernel::set_parameters theta", theta.size(), num_parameters());
-  RequireFinite("FeatureKernel::set_parameters theta", theta);
+std::unique_ptr<Kernel> FeatureKernel::WithParameters(const ConstVectorRef& theta) const {
+  auto kernel = std::make_unique<FeatureKernel>(*this);
+  kernel->AssignParameters(theta);
+  return kernel;
+}
+
+void FeatureKernel::AssignParameters(const ConstVectorRef& theta) {
+  RequireSize("FeatureKernel::WithParameters theta", theta.size(), num_parameters());
+  RequireFinite("FeatureKernel::WithParameters theta", theta);
   const int num_shape = map_->num_shape_parameters();
   hyper_.shape = theta.head(num_shape);
   hyper_.log_block_scale = theta.tail(static_cast<Eigen::Index>(blocks_.size()));

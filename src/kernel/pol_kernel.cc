@@ -34,9 +34,15 @@ std::vector<std::string> PolFormulaKernel::parameter_names() const {
 
 Vector PolFormulaKernel::parameters() const { return parameters_; }
 
-void PolFormulaKernel::set_parameters(const ConstVectorRef& theta) {
-  RequireSize("PolFormulaKernel::set_parameters theta", theta.size(), num_parameters());
-  RequireFinite("PolFormulaKernel::set_parameters theta", theta);
+std::unique_ptr<Kernel> PolFormulaKernel::WithParameters(const ConstVectorRef& theta) const {
+  auto kernel = std::make_unique<PolFormulaKernel>(*this);
+  kernel->AssignParameters(theta);
+  return kernel;
+}
+
+void PolFormulaKernel::AssignParameters(const ConstVectorRef& theta) {
+  RequireSize("PolFormulaKernel::WithParameters theta", theta.size(), num_parameters());
+  RequireFinite("PolFormulaKernel::WithParameters theta", theta);
   parameters_ = theta;
   UpdateCache();
 }

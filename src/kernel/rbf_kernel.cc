@@ -98,9 +98,15 @@ Vector RbfKernel::parameters() const {
   return theta;
 }
 
-void RbfKernel::set_parameters(const ConstVectorRef& theta) {
-  RequireSize("RbfKernel::set_parameters theta", theta.size(), num_parameters());
-  RequireFinite("RbfKernel::set_parameters theta", theta);
+std::unique_ptr<Kernel> RbfKernel::WithParameters(const ConstVectorRef& theta) const {
+  std::unique_ptr<Kernel> kernel = Clone();  // of the dynamic type (RbfKernel or RbfsKernel)
+  static_cast<RbfKernel&>(*kernel).AssignParameters(theta);
+  return kernel;
+}
+
+void RbfKernel::AssignParameters(const ConstVectorRef& theta) {
+  RequireSize("RbfKernel::WithParameters theta", theta.size(), num_parameters());
+  RequireFinite("RbfKernel::WithParameters theta", theta);
   log_length_scale_ = theta.head(log_length_scale_.size());
   log_signal_std_ = theta[num_parameters() - 1];
   UpdateCache();

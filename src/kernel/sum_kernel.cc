@@ -51,13 +51,17 @@ Vector SumKernel::parameters() const {
   return theta;
 }
 
-void SumKernel::set_parameters(const ConstVectorRef& theta) {
-  RequireSize("SumKernel::set_parameters", theta.size(), num_parameters_);
+std::unique_ptr<Kernel> SumKernel::WithParameters(const ConstVectorRef& theta) const {
+  RequireSize("SumKernel::WithParameters theta", theta.size(), num_parameters_);
+  std::vector<std::unique_ptr<Kernel>> parts;
+  std::vector<const Kernel*> raw;
   int offset = 0;
-  for (auto& p : parts_) {
-    p->set_parameters(theta.segment(offset, p->num_parameters()));
+  for (const auto& p : parts_) {
+    parts.push_back(p->WithParameters(theta.segment(offset, p->num_parameters())));
+    raw.push_back(parts.back().get());
     offset += p->num_parameters();
   }
+  return std::make_unique<SumKernel>(raw);
 }
 
 void SumKernel::Gradient(const ConstVectorRef& a, const ConstVectorRef& b, VectorRef dk) const {

@@ -68,16 +68,18 @@ GaussianProcess::GaussianProcess(std::shared_ptr<const FeatureMap> map,
   phi_.resize(map_->dim());
 }
 
-GaussianProcess::GaussianProcess(const Kernel& kernel, double noise_variance, int num_outputs,
-                                 const Vector& output_scales, const BatchFitOptions& batch)
-    : kernel_(kernel.Clone()),
+GaussianProcess::GaussianProcess(const Kernel& kernel, const Hyperparameters& hyper,
+                                 int num_outputs, const BatchFitOptions& batch)
+    : hyper_(hyper),
       num_outputs_(num_outputs),
       requested_(Form::kFunctionSpace),
       active_(Form::kFunctionSpace),
       batch_(batch) {
   ValidateBatch(batch_);
-  function_space_ =
-      std::make_unique<KernelGP>(*kernel_, noise_variance, num_outputs, output_scales);
+  ValidateHyperparameters(hyper_, kernel, num_outputs);
+  kernel_ = kernel.WithParameters(hyper_.shape);
+  function_space_ = std::make_unique<KernelGP>(*kernel_, hyper_.noise_variance(), num_outputs,
+                                               hyper_.output_scales());
 }
 
 int GaussianProcess::input_dim() const { return map_ ? map_->input_dim() : kernel_->input_dim(); }

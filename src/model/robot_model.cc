@@ -133,12 +133,13 @@ void RobotModel::BuildKernel() {
   auto extras = ExtrasMap(spec_, N, options_.friction_width, false, &extra_names);
   if (!extras) {
     kernel_ = std::move(base);
-    return;
+  } else {
+    Hyperparameters h = structgp::DefaultHyperparameters(*extras, N);
+    h.log_block_scale.setConstant(std::log(options_.broad_prior_std));
+    FeatureKernel extra_kernel(extras, h);
+    kernel_ = std::make_unique<SumKernel>(std::vector<const Kernel*>{base.get(), &extra_kernel});
   }
-  Hyperparameters h = structgp::DefaultHyperparameters(*extras, N);
-  h.log_block_scale.setConstant(std::log(options_.broad_prior_std));
-  FeatureKernel extra_kernel(extras, h);
-  kernel_ = std::make_unique<SumKernel>(std::vector<const Kernel*>{base.get(), &extra_kernel});
+  default_kernel_parameters_ = kernel_->parameters();
 }
 
 Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) const {
@@ -161,7 +162,7 @@ Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) cons
       }
     }
   } else {
-    h.shape.resize(0);
+    h.shape = default_kernel_parameters_;
     h.log_block_scale.resize(0);
     h.log_output_scale = Vector::Zero(num_joints_);
   }
@@ -186,13 +187,11 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
     gp = std::make_unique<GaussianProcess>(map_, hyper, num_joints_, options_.form,
                                            options_.batch);
   } else {
-    RequireSize("RobotModel::Fit hyper.log_output_scale", hyper.log_output_scale.size(),
-                num_joints_);
-    gp = std::make_unique<GaussianProcess>(*kernel_, hyper.noise_variance(), num_joints_,
-                                           hyper.output_scales(), options_.batch);
+    gp = std::make_unique<GaussianProcess>(*kernel_, hyper, num_joints_, options_.batch);
   }
   const Status status = gp->Fit(X, Y);
   if (status != Status::kOk) return status;
+  if (kernel_) kernel_ = kernel_->WithParameters(hyper.shape);
   gp_ = std::move(gp);
   hyper_ = hyper;
   return Status::kOk;

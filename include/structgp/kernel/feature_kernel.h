@@ -41,18 +41,21 @@ class FeatureKernel : public Kernel {
   int num_parameters() const override;
   std::vector<std::string> parameter_names() const override;
   Vector parameters() const override;
-  void set_parameters(const ConstVectorRef& theta) override;
+  std::unique_ptr<Kernel> WithParameters(const ConstVectorRef& theta) const override;
   void Gradient(const ConstVectorRef& a, const ConstVectorRef& b, VectorRef dk) const override;
   std::unique_ptr<Kernel> Clone() const override;
 
   const FeatureMap& map() const { return *map_; }
   const std::shared_ptr<const FeatureMap>& shared_map() const { return map_; }
-  /// The hyper-parameters, with shape and log_block_scale as currently set.
+  /// The hyper-parameters the kernel was built with (shape and log_block_scale: its
+  /// parameters()).
   const Hyperparameters& hyperparameters() const { return hyper_; }
   /// Lambda (size D).
   const Vector& prior_variance() const { return lambda_; }
 
  private:
+  // Sets the parameters of a kernel not yet shared (WithParameters' copy).
+  void AssignParameters(const ConstVectorRef& theta);
   // Recomputes Lambda and d Lambda / d shape from hyper_.
   void UpdatePrior();
   // phi_a_ = phi(a), phi_b_ = phi(b), product_ = phi_a_ .* phi_b_.

@@ -72,8 +72,7 @@ class PolFormulaKernel : public Kernel {
   int num_parameters() const override { return options_.include_gravity ? 4 : 3; }
   std::vector<std::string> parameter_names() const override;
   Vector parameters() const override;
-  /// Throws std::invalid_argument on a size mismatch or a non-finite value.
-  void set_parameters(const ConstVectorRef& theta) override;
+  std::unique_ptr<Kernel> WithParameters(const ConstVectorRef& theta) const override;
   /// d k / d (log sigma, log block scales) into dk (size num_parameters()).
   void Gradient(const ConstVectorRef& a, const ConstVectorRef& b, VectorRef dk) const override;
   std::unique_ptr<Kernel> Clone() const override;
@@ -87,6 +86,8 @@ class PolFormulaKernel : public Kernel {
   std::vector<std::string> block_names() const;
 
  private:
+  // Sets the parameters of a kernel not yet shared (WithParameters' copy).
+  void AssignParameters(const ConstVectorRef& theta);
   // Terms and, when d_log_sigma is not null, d (sum of terms) / d log sigma.
   PolKernelTerms Compute(const ConstVectorRef& a, const ConstVectorRef& b,
                          double* d_log_sigma) const;

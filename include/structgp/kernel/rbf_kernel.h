@@ -38,7 +38,7 @@ class RbfKernel : public Kernel {
   int num_parameters() const override { return static_cast<int>(log_length_scale_.size()) + 1; }
   std::vector<std::string> parameter_names() const override;
   Vector parameters() const override;
-  void set_parameters(const ConstVectorRef& theta) override;
+  std::unique_ptr<Kernel> WithParameters(const ConstVectorRef& theta) const override;
   void Gradient(const ConstVectorRef& a, const ConstVectorRef& b, VectorRef dk) const override;
   std::unique_ptr<Kernel> Clone() const override;
 
@@ -52,6 +52,8 @@ class RbfKernel : public Kernel {
   RbfKernel(int input_dim, int num_angles, bool ard, double length_scale, double signal_std);
 
  private:
+  // Sets the parameters of a kernel not yet shared (WithParameters' copy).
+  void AssignParameters(const ConstVectorRef& theta);
   // Difference of input i as it enters r^2.
   double Difference(int i, double a, double b) const;
   void UpdateCache();

@@ -25,7 +25,7 @@ class SumKernel : public Kernel {
   int num_parameters() const override { return num_parameters_; }
   std::vector<std::string> parameter_names() const override;
   Vector parameters() const override;
-  void set_parameters(const ConstVectorRef& theta) override;
+  std::unique_ptr<Kernel> WithParameters(const ConstVectorRef& theta) const override;
   void Gradient(const ConstVectorRef& a, const ConstVectorRef& b, VectorRef dk) const override;
   std::unique_ptr<Kernel> Clone() const override;
 

@@ -15,6 +15,7 @@
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
+#include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/model/kernel_gp.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
@@ -56,8 +57,10 @@ class GaussianProcess {
                   int num_outputs, Form form = Form::kAuto,
                   const BatchFitOptions& batch = BatchFitOptions());
   /// A model with a kernel that has no finite map (rbf, rbfs): always the function space.
-  GaussianProcess(const Kernel& kernel, double noise_variance, int num_outputs,
-                  const Vector& output_scales = Vector(),
+  /// hyper holds the kernel's parameters in shape (kernel/kernel_hyperparameters.h): the model
+  /// uses kernel.WithParameters(hyper.shape), so only the kernel's type and structure matter.
+  /// Throws std::invalid_argument when hyper does not match the kernel and num_outputs.
+  GaussianProcess(const Kernel& kernel, const Hyperparameters& hyper, int num_outputs,
                   const BatchFitOptions& batch = BatchFitOptions());
 
   /// Fits X (m x input_dim) and Y (m x P); with Form::kAuto picks the form from D and m
@@ -67,6 +70,9 @@ class GaussianProcess {
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
 
   const BatchFitOptions& batch_options() const { return batch_; }
+  /// The hyper-parameters the model was built with (shape: the feature map's shape
+  /// parameters, or the kernel's parameters).
+  const Hyperparameters& hyperparameters() const { return hyper_; }
   /// Rows given to the last successful Fit, and rows the model was fitted on (fewer when the
   /// function space took a subset).
   Eigen::Index data_rows() const { return data_rows_; }

@@ -27,6 +27,7 @@
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
+#include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/model/gaussian_process.h"
 #include "structgp/model/model_spec.h"
 
@@ -71,19 +72,26 @@ class RobotModel {
 
   /// The feature map (null for rbf/rbfs bases).
   const std::shared_ptr<const FeatureMap>& feature_map() const { return map_; }
-  /// Feature-map hyper-parameters in use (feature-map bases only).
+  /// The hyper-parameters of the last successful Fit (empty before): for a feature map its
+  /// shape parameters and block scales, for a kernel its parameters in shape (see
+  /// core/hyperparameters.h), and the noise and output scales of both.
   const Hyperparameters& hyperparameters() const { return hyper_; }
   /// The kernel of rbf/rbfs models, and of pol models beyond max_explicit_features (null
-  /// for models with a feature map).
+  /// for models with a feature map), with the parameters of the last successful Fit
+  /// (hyperparameters().shape), or its defaults before. Immutable (kernel/kernel.h).
   const Kernel* kernel() const { return kernel_.get(); }
 
   /// Default hyper-parameters for torques Y (m x N): output scales from the torque spread,
-  /// noise 10% of it, broad priors on friction and effects, the base's default shape.
+  /// noise 10% of it, broad priors on friction and effects, the base's default shape (for a
+  /// kernel: its default parameters, with broad priors on friction and effects).
   Hyperparameters DefaultHyperparameters(const ConstMatrixRef& Y) const;
 
-  /// Fits X (m x input_dim) and Y (m x N) with the given hyper-parameters (feature-map bases)
-  /// or the kernel's current parameters plus noise/output scales from hyper (rbf bases).
-  /// Throws std::invalid_argument on bad sizes or values; a numerical failure is a status.
+  /// Fits X (m x input_dim) and Y (m x N) with the given hyper-parameters: for a feature map
+  /// its shape and block scales, for a kernel its parameters in hyper.shape (the layout of
+  /// kernel()->parameters(), e.g. a FitKernelHyperparameters result; log_block_scale empty),
+  /// and the noise and output scales. On success the model owns hyper (hyperparameters())
+  /// and kernel() has its parameters. Throws std::invalid_argument on bad sizes or values; a
+  /// numerical failure is a status (the model is then unchanged).
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y, const Hyperparameters& hyper);
   /// Fits with DefaultHyperparameters(Y).
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
@@ -128,7 +136,8 @@ class RobotModel {
   std::shared_ptr<const FeatureMap> map_;
   std::vector<Part> parts_;                                   // component ranges in phi
   std::vector<std::pair<std::string, int>> parametric_names_;  // feature name -> index
-  std::unique_ptr<Kernel> kernel_;
+  std::unique_ptr<Kernel> kernel_;  // at hyper_.shape once fitted
+  Vector default_kernel_parameters_;
   Hyperparameters hyper_;
   std::unique_ptr<GaussianProcess> gp_;
 };
