@@ -141,10 +141,11 @@ void BM_Predict(benchmark::State& state) {
   const KernelGP& model = FittedModel(m);
   const Pool pool = MakePool();
   Vector mean(kOutputs), latent(kOutputs), noisy(kOutputs);
+  KernelGP::Workspace workspace = model.MakeWorkspace();
   int i = 0;
   const std::size_t allocs_before = structgp::testing::TotalAllocations();
   for (auto _ : state) {
-    const Status status = model.PredictWithVariance(pool.x[i], mean, latent, noisy);
+    const Status status = model.PredictWithVariance(pool.x[i], mean, latent, noisy, workspace);
     benchmark::DoNotOptimize(status);
     benchmark::DoNotOptimize(mean.data());
     benchmark::ClobberMemory();

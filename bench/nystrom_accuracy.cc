@@ -123,8 +123,9 @@ double Nmse(const Matrix& prediction, const Matrix& truth) {
 Matrix PredictExact(const structgp::KernelGP& gp, const Matrix& X) {
   Matrix out(X.rows(), gp.num_outputs());
   Vector mean(gp.num_outputs());
+  structgp::KernelGP::Workspace workspace = gp.MakeWorkspace();
   for (int i = 0; i < X.rows(); ++i) {
-    gp.Predict(X.row(i).transpose(), mean);
+    gp.Predict(X.row(i).transpose(), mean, workspace);
     out.row(i) = mean.transpose();
   }
   return out;
@@ -134,9 +135,10 @@ Matrix PredictWeightSpace(const structgp::WeightSpaceGP& gp, const structgp::Fea
                           const Matrix& X) {
   Matrix out(X.rows(), gp.num_outputs());
   Vector mean(gp.num_outputs()), phi(map.dim());
+  structgp::WeightSpaceGP::Workspace workspace = gp.MakeWorkspace();
   for (int i = 0; i < X.rows(); ++i) {
     map.Evaluate(X.row(i).transpose(), phi);
-    gp.Predict(phi, mean);
+    gp.Predict(phi, mean, workspace);
     out.row(i) = mean.transpose();
   }
   return out;

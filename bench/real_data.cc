@@ -467,9 +467,10 @@ MaximumLikelihoodSummary FitWeightSpaceEvidence(std::shared_ptr<const FeatureMap
 Matrix PredictWeightSpace(const FeatureMap& map, const WeightSpaceGP& gp, const Matrix& X) {
   Matrix prediction(X.rows(), gp.num_outputs());
   Vector phi(map.dim()), mean(gp.num_outputs());
+  WeightSpaceGP::Workspace workspace = gp.MakeWorkspace();
   for (Eigen::Index i = 0; i < X.rows(); ++i) {
     map.Evaluate(X.row(i).transpose(), phi);
-    gp.Predict(phi, mean);
+    gp.Predict(phi, mean, workspace);
     prediction.row(i) = mean.transpose();
   }
   return prediction;

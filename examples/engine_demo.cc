@@ -44,8 +44,9 @@ int main(int argc, char** argv) {
   Vector mean(P), latent(P), noisy(P);
   auto test_rms = [&](const structgp::WeightSpaceGP& model) {
     double sse = 0.0;
+    structgp::WeightSpaceGP::Workspace workspace = model.MakeWorkspace();
     for (int i = 0; i < Phi_test.rows(); ++i) {
-      model.Predict(Phi_test.row(i).transpose(), mean);
+      model.Predict(Phi_test.row(i).transpose(), mean, workspace);
       sse += (mean - Y_test.row(i).transpose()).squaredNorm();
     }
     return std::sqrt(sse / (Phi_test.rows() * P));

@@ -30,9 +30,11 @@ void ExpectNoNaN(const WeightSpaceGP& model, const Matrix& queries) {
   EXPECT_TRUE((model.covariance_factor().diagonal().array() > 0.0).all());
   const int P = model.num_outputs();
   Vector mean(P), latent(P), noisy(P);
+  WeightSpaceGP::Workspace workspace = model.MakeWorkspace();
   for (int i = 0; i < queries.rows(); ++i) {
-    ASSERT_EQ(model.PredictWithVariance(queries.row(i).transpose(), mean, latent, noisy),
-              Status::kOk);
+    ASSERT_EQ(
+        model.PredictWithVariance(queries.row(i).transpose(), mean, latent, noisy, workspace),
+        Status::kOk);
     EXPECT_TRUE(mean.allFinite() && latent.allFinite() && noisy.allFinite()) << "query " << i;
     EXPECT_TRUE((latent.array() >= 0.0).all()) << "query " << i;
   }

@@ -98,7 +98,8 @@ Prediction PredictAt(const KernelGP& model, const Vector& x) {
   p.mean.resize(model.num_outputs());
   p.latent.resize(model.num_outputs());
   p.noisy.resize(model.num_outputs());
-  EXPECT_EQ(model.PredictWithVariance(x, p.mean, p.latent, p.noisy), Status::kOk);
+  KernelGP::Workspace workspace = model.MakeWorkspace();
+  EXPECT_EQ(model.PredictWithVariance(x, p.mean, p.latent, p.noisy, workspace), Status::kOk);
   return p;
 }
 

@@ -447,5 +447,78 @@ TEST(ModelFileSave, IsAtomic) {
   EXPECT_EQ(dir.Entries(), std::vector<std::string>{"model.json"});
 }
 
+// RobotModel::State / FromState restore a model exactly and without a fit: a state whose
+// posterior was changed by hand comes back changed (no data, and no fit of any data, gives
+// that posterior), also through a file, and the model reports its own rows (a fit on
+// placeholder rows would report the D rows of that fit).
+TEST(RobotModelState, RestoresTheStateWithoutRefitting) {
+  RobotModel model = FitModel("pol+fri", "coulomb@2", 600);
+  ASSERT_NE(model.gp().weight_space(), nullptr);
+  ASSERT_NE(model.feature_map()->dim(), 600);
+  const RobotModel same = RobotModel::FromState(model.State());
+  ExpectSameModel(model, same);
+  EXPECT_EQ(same.gp().data_rows(), 600);
+
+  // Doubling the weights doubles every mean exactly (a factor 2 commutes with rounding).
+  RobotModelState state = model.State();
+  state.weight_space.weights *= 2.0;
+  const RobotModel doubled = RobotModel::FromState(state);
+  const Matrix X = Inputs(model, Scenario().test);
+  Matrix mean, mean_doubled, std, std_doubled;
+  model.PredictRows(X, &mean, &std);
+  doubled.PredictRows(X, &mean_doubled, &std_doubled);
+  ExpectBitIdentical(2.0 * mean, mean_doubled, "means with doubled weights");
+  ExpectBitIdentical(std, std_doubled, "standard deviations");
+
+  TempDir dir;
+  SaveModel(dir.File("doubled.json"), doubled);
+  const RobotModel loaded = LoadModel(dir.File("doubled.json"));
+  Matrix mean_loaded;
+  loaded.PredictRows(X, &mean_loaded);
+  ExpectBitIdentical(mean_doubled, mean_loaded, "means of the loaded model");
+  EXPECT_EQ(loaded.gp().data_rows(), 600);
+  EXPECT_EQ(loaded.gp().fit_rows(), 600);
+}
+
+TEST(RobotModelState, FunctionSpaceStateRoundTripsExactly) {
+  ModelSpec spec = ParseModelSpec("rbf+fri");
+  const sim::Dataset& train = Scenario().train;
+  RobotModel model(spec, train.num_joints());
+  const Matrix X = train.X.topRows(200);
+  const Matrix Y = train.Y.topRows(200);
+  Hyperparameters h = model.DefaultHyperparameters(Y);
+  h.shape.array() += 0.05;
+  ASSERT_EQ(model.Fit(X, Y, h), Status::kOk);
+  const RobotModelState state = model.State();
+  EXPECT_EQ(state.form, Form::kFunctionSpace);
+  ExpectBitIdentical(state.inputs, X, "stored inputs");
+  const RobotModel restored = RobotModel::FromState(state);
+  ExpectBitIdentical(model.kernel()->parameters(), h.shape, "kernel parameters in use");
+  ExpectBitIdentical(restored.kernel()->parameters(), h.shape, "restored kernel parameters");
+  ExpectSameModel(model, restored);
+}
+
+TEST(RobotModelState, InconsistentStatesAreRefused) {
+  RobotModel model = FitModel("pol+fri", "", 300);
+  EXPECT_THROW(RobotModel(ParseModelSpec("pol"), 2).State(), std::logic_error);
+  RobotModelState state = model.State();
+  state.form = Form::kAuto;
+  EXPECT_THROW(RobotModel::FromState(state), std::invalid_argument);
+  state = model.State();
+  state.hyperparameters.log_block_scale.resize(1);
+  EXPECT_THROW(RobotModel::FromState(state), std::invalid_argument);
+  state = model.State();
+  state.weight_space.covariance_factor(1, 0) = 1.0;  // not upper-triangular
+  EXPECT_THROW(RobotModel::FromState(state), std::invalid_argument);
+  state = model.State();
+  state.spec = ParseModelSpec("rbf");  // no feature map: no weight-space form
+  EXPECT_THROW(RobotModel::FromState(state), std::invalid_argument);
+  state = model.State();
+  state.form = Form::kFunctionSpace;
+  state.inputs = Matrix::Zero(3, 2);  // 6 inputs expected
+  state.targets = Matrix::Zero(3, 2);
+  EXPECT_THROW(RobotModel::FromState(state), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace structgp

@@ -222,10 +222,12 @@ void ExpectSamePredictions(OnlineLearner& learner, const WeightSpaceGP& referenc
   const FeatureMap& map = *learner.options().feature_map;
   Vector phi(map.dim()), mean(kOutputs), var(kOutputs), ref_mean(kOutputs), ref_latent(kOutputs),
       ref_noisy(kOutputs);
+  WeightSpaceGP::Workspace workspace = reference.MakeWorkspace();
   for (int i = 0; i < X_test.rows(); ++i) {
     const Vector x = X_test.row(i).transpose();
     map.Evaluate(x, phi);
-    ASSERT_EQ(reference.PredictWithVariance(phi, ref_mean, ref_latent, ref_noisy), Status::kOk);
+    ASSERT_EQ(reference.PredictWithVariance(phi, ref_mean, ref_latent, ref_noisy, workspace),
+              Status::kOk);
     ASSERT_EQ(learner.Predict(x, mean), Status::kOk);
     EXPECT_TRUE(BitEqual(mean, ref_mean)) << "test state " << i << ": mean " << mean.transpose()
                                           << " vs reference " << ref_mean.transpose();

@@ -83,9 +83,10 @@ void ExpectPredictionsMatch(const WeightSpaceGP& model, const DenseReference& re
                             const Matrix& queries, double tol) {
   const int P = model.num_outputs();
   Vector mean(P), latent(P), noisy(P);
+  WeightSpaceGP::Workspace workspace = model.MakeWorkspace();
   for (int i = 0; i < queries.rows(); ++i) {
     const Vector phi = queries.row(i).transpose();
-    ASSERT_EQ(model.PredictWithVariance(phi, mean, latent, noisy), Status::kOk);
+    ASSERT_EQ(model.PredictWithVariance(phi, mean, latent, noisy, workspace), Status::kOk);
     EXPECT_LT(RelDiff(mean, ref.Mean(phi)), tol) << "query " << i;
     EXPECT_LT(RelDiff(latent, ref.LatentVariance(phi)), tol) << "query " << i;
     EXPECT_LT(RelDiff(noisy, latent + model.noise_variance() * ref.scales_.cwiseAbs2()), 1e-15);
@@ -349,8 +350,9 @@ TEST(WeightSpaceGP, VarianceNeverNegativeAndIllConditionedGivesStatusNotNaN) {
       EXPECT_TRUE(m->weights().allFinite());
       EXPECT_TRUE(m->covariance_factor().allFinite());
       Vector mean(P), latent(P), noisy(P);
+      WeightSpaceGP::Workspace workspace = m->MakeWorkspace();
       for (int i = 0; i < 20; ++i) {
-        ASSERT_EQ(m->PredictWithVariance(p.Phi.row(i).transpose(), mean, latent, noisy),
+        ASSERT_EQ(m->PredictWithVariance(p.Phi.row(i).transpose(), mean, latent, noisy, workspace),
                   Status::kOk);
         EXPECT_TRUE(mean.allFinite());
         EXPECT_TRUE((latent.array() >= 0.0).all());

@@ -561,80 +561,63 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
              " features, the file says " + std::to_string(num_features));
     }
 
+    RobotModelState state;
+    state.spec = spec;
+    state.num_joints = num_joints;
+    state.options = options;
+    state.hyperparameters = hyper;
+    state.form = active;
+    if (probe.kernel() != nullptr) {
+      // A kernel's parameters: "kernel_parameters" in the file, Hyperparameters::shape in the
+      // model.
+      if (kernel_parameters.size() != probe.kernel()->num_parameters()) {
+        r.FailField("hyperparameters.kernel_parameters",
+                    "expected " + std::to_string(probe.kernel()->num_parameters()) +
+                        " values, got " + std::to_string(kernel_parameters.size()));
+      }
+      state.hyperparameters.shape = kernel_parameters;
+    }
+
     if (active == Form::kWeightSpace) {
       if (!probe.feature_map()) r.Fail("inconsistent model file: a kernel model in weight space");
       const std::string p = "weight_space";
       const Json& w = r.Get(doc, "", "weight_space");
-      WeightSpaceGPState state;
-      state.prior_variance = r.DecodedVector(w, p, "prior_variance");
-      state.noise_variance = r.Number(w, p, "noise_variance");
-      state.output_scales = r.DecodedVector(w, p, "output_scales");
-      state.covariance_factor = r.DecodedMatrix(w, p, "covariance_factor");
-      state.weights = r.DecodedMatrix(w, p, "weights");
-      state.y_squared = r.DecodedVector(w, p, "y_squared");
-      state.weight_sum = r.Number(w, p, "weight_sum");
-      state.log_weight_sum = r.Number(w, p, "log_weight_sum");
-      state.log_prior_broadening = r.Number(w, p, "log_prior_broadening");
-      state.sample_count = r.Number(w, p, "sample_count");
-      state.num_samples =
-          static_cast<long>(r.Integer(w, p, "num_samples", -(1LL << 62), 1LL << 62));
-      WeightSpaceGP restored = WeightSpaceGP::FromState(state);
-      if (restored.num_features() != num_features || restored.num_outputs() != num_joints) {
+      WeightSpaceGPState& ws = state.weight_space;
+      ws.prior_variance = r.DecodedVector(w, p, "prior_variance");
+      ws.noise_variance = r.Number(w, p, "noise_variance");
+      ws.output_scales = r.DecodedVector(w, p, "output_scales");
+      ws.covariance_factor = r.DecodedMatrix(w, p, "covariance_factor");
+      ws.weights = r.DecodedMatrix(w, p, "weights");
+      ws.y_squared = r.DecodedVector(w, p, "y_squared");
+      ws.weight_sum = r.Number(w, p, "weight_sum");
+      ws.log_weight_sum = r.Number(w, p, "log_weight_sum");
+      ws.log_prior_broadening = r.Number(w, p, "log_prior_broadening");
+      ws.sample_count = r.Number(w, p, "sample_count");
+      ws.num_samples = static_cast<long>(r.Integer(w, p, "num_samples", -(1LL << 62), 1LL << 62));
+      if (ws.prior_variance.size() != num_features || ws.output_scales.size() != num_joints) {
         r.Fail("inconsistent model file: the weight-space state has " +
-               std::to_string(restored.num_features()) + " features and " +
-               std::to_string(restored.num_outputs()) + " outputs, the model " +
+               std::to_string(ws.prior_variance.size()) + " features and " +
+               std::to_string(ws.output_scales.size()) + " outputs, the model " +
                std::to_string(num_features) + " and " + std::to_string(num_joints));
       }
-      // Fit on D copies of the zero state: enough rows for the weight-space form whatever
-      // options.form asks (kAuto picks it when D <= m), and O(D^3) once. This sets the
-      // hyper-parameters of the model and its GaussianProcess; the state then replaces the
-      // posterior.
-      const Eigen::Index D = probe.feature_map()->dim();
-      const Matrix X = Matrix::Zero(D, input_dim);
-      const Matrix Y = Matrix::Zero(D, num_joints);
-      if (probe.Fit(X, Y, hyper) != Status::kOk || probe.gp().weight_space() == nullptr) {
-        r.Fail("the stored hyper-parameters do not give a usable weight-space model");
-      }
-      // The WeightSpaceGP is owned, non-const, by the model's GaussianProcess, which offers
-      // const access only; mutable_gp() grants the right to change it.
-      auto* target = const_cast<WeightSpaceGP*>(probe.mutable_gp().weight_space());
-      *target = std::move(restored);
-      return probe;
+      // The posterior is restored as it is: no fit.
+      return RobotModel::FromState(state);
     }
 
     const std::string p = "function_space";
     const Json& f = r.Get(doc, "", "function_space");
-    const Matrix X = r.DecodedMatrix(f, p, "inputs");
-    const Matrix Y = r.DecodedMatrix(f, p, "targets");
+    state.inputs = r.DecodedMatrix(f, p, "inputs");
+    state.targets = r.DecodedMatrix(f, p, "targets");
+    const Matrix& X = state.inputs;
+    const Matrix& Y = state.targets;
     if (X.cols() != input_dim || Y.cols() != num_joints || X.rows() != Y.rows()) {
       r.Fail("inconsistent model file: stored inputs are " + std::to_string(X.rows()) + " x " +
              std::to_string(X.cols()) + " and targets " + std::to_string(Y.rows()) + " x " +
              std::to_string(Y.cols()) + ", the model needs " + std::to_string(input_dim) +
              " input and " + std::to_string(num_joints) + " target columns");
     }
-    // A model fitted with Form::kAuto in function space that later grew past D points by
-    // online additions would be refitted in weight space: keep the function space.
-    RobotModelOptions load_options = options;
-    // The stored points are the model's own (a subset already, if one was taken): refit all.
-    load_options.batch.max_kernel_rows = 0;
-    if (probe.feature_map() && load_options.form == Form::kAuto &&
-        probe.feature_map()->dim() <= X.rows()) {
-      load_options.form = Form::kFunctionSpace;
-    }
-    RobotModel model(spec, num_joints, load_options);
-    if (model.kernel() != nullptr) {
-      if (kernel_parameters.size() != model.kernel()->num_parameters()) {
-        r.FailField("hyperparameters.kernel_parameters",
-                    "expected " + std::to_string(model.kernel()->num_parameters()) +
-                        " values, got " + std::to_string(kernel_parameters.size()));
-      }
-      hyper.shape = kernel_parameters;
-    }
-    const Status status = model.Fit(X, Y, hyper);
-    if (status != Status::kOk) {
-      r.Fail(std::string("the stored points cannot be refitted: ") + ToString(status));
-    }
-    return model;
+    // The stored points are factorised again (O(m^3)), all of them, in function space.
+    return RobotModel::FromState(state);
   } catch (const std::invalid_argument& e) {
     r.Fail(std::string("inconsistent model file: ") + e.what());
   }

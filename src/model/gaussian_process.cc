@@ -82,6 +82,26 @@ GaussianProcess::GaussianProcess(const Kernel& kernel, const Hyperparameters& hy
                                                hyper_.output_scales());
 }
 
+GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMap> map,
+                                                 const Hyperparameters& hyper, int num_outputs,
+                                                 Form form, const BatchFitOptions& batch,
+                                                 WeightSpaceGP posterior, Eigen::Index rows) {
+  GaussianProcess gp(std::move(map), hyper, num_outputs, form, batch);
+  RequireSize("GaussianProcess::FromWeightSpace posterior features", posterior.num_features(),
+              gp.map_->dim());
+  RequireSize("GaussianProcess::FromWeightSpace posterior outputs", posterior.num_outputs(),
+              num_outputs);
+  if (rows < 0) {
+    throw std::invalid_argument("GaussianProcess::FromWeightSpace: expected rows >= 0, got " +
+                                std::to_string(rows));
+  }
+  gp.weight_space_ = std::make_unique<WeightSpaceGP>(std::move(posterior));
+  gp.active_ = Form::kWeightSpace;
+  gp.data_rows_ = rows;
+  gp.fit_rows_ = rows;
+  return gp;
+}
+
 int GaussianProcess::input_dim() const { return map_ ? map_->input_dim() : kernel_->input_dim(); }
 
 Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
@@ -134,22 +154,53 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   return Status::kOk;
 }
 
+GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
+  Workspace workspace;
+  if (function_space_) workspace.function_space = function_space_->MakeWorkspace();
+  if (weight_space_) {
+    workspace.features.resize(map_->dim());
+    workspace.weight_space = weight_space_->MakeWorkspace();
+  }
+  return workspace;
+}
+
+Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
+                                Workspace& workspace) const {
+  if (function_space_) return function_space_->Predict(x, mean, workspace.function_space);
+  if (!weight_space_ || x.size() != input_dim() || !x.allFinite() ||
+      workspace.features.size() != map_->dim()) {
+    return Status::kInvalidInput;
+  }
+  map_->Evaluate(x, workspace.features);
+  return weight_space_->Predict(workspace.features, mean, workspace.weight_space);
+}
+
+Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
+                                            VectorRef latent_variance, VectorRef noisy_variance,
+                                            Workspace& workspace) const {
+  if (function_space_) {
+    return function_space_->PredictWithVariance(x, mean, latent_variance, noisy_variance,
+                                                workspace.function_space);
+  }
+  if (!weight_space_ || x.size() != input_dim() || !x.allFinite() ||
+      workspace.features.size() != map_->dim()) {
+    return Status::kInvalidInput;
+  }
+  map_->Evaluate(x, workspace.features);
+  return weight_space_->PredictWithVariance(workspace.features, mean, latent_variance,
+                                            noisy_variance, workspace.weight_space);
+}
+
 Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean) const {
-  if (function_space_) return function_space_->Predict(x, mean);
-  if (!weight_space_ || x.size() != input_dim() || !x.allFinite()) return Status::kInvalidInput;
-  map_->Evaluate(x, phi_);
-  return weight_space_->Predict(phi_, mean);
+  Workspace workspace = MakeWorkspace();
+  return Predict(x, mean, workspace);
 }
 
 Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                                             VectorRef latent_variance,
                                             VectorRef noisy_variance) const {
-  if (function_space_) {
-    return function_space_->PredictWithVariance(x, mean, latent_variance, noisy_variance);
-  }
-  if (!weight_space_ || x.size() != input_dim() || !x.allFinite()) return Status::kInvalidInput;
-  map_->Evaluate(x, phi_);
-  return weight_space_->PredictWithVariance(phi_, mean, latent_variance, noisy_variance);
+  Workspace workspace = MakeWorkspace();
+  return PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace);
 }
 
 Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {

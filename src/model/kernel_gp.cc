@@ -219,7 +219,7 @@ void KernelGP::Reserve(int capacity) {
   inputs_.conservativeResize(Eigen::NoChange, capacity);
   Y_.conservativeResize(capacity, Eigen::NoChange);
   beta_.conservativeResize(capacity, Eigen::NoChange);
-  work_k_.resize(capacity);
+  own_.column.resize(capacity);
   capacity_ = capacity;
 }
 
@@ -312,9 +312,14 @@ void KernelGP::WritePrediction(const double* p, double kxx, VectorRef mean,
   }
 }
 
-Status KernelGP::Predict(const ConstVectorRef& x, VectorRef mean) const {
-  if (!VectorOk(x, input_dim()) || mean.size() != num_outputs_) return Status::kInvalidInput;
-  double* p = work_k_.data();
+KernelGP::Workspace KernelGP::MakeWorkspace() const { return Workspace{Vector(capacity_)}; }
+
+Status KernelGP::Predict(const ConstVectorRef& x, VectorRef mean, Workspace& workspace) const {
+  if (!VectorOk(x, input_dim()) || mean.size() != num_outputs_ ||
+      workspace.column.size() < size_) {
+    return Status::kInvalidInput;
+  }
+  double* p = workspace.column.data();
   KernelColumn(x, size_, p);
   PackedForwardSolve(packed_.data(), size_, p);
   for (int j = 0; j < num_outputs_; ++j) mean[j] = Dot(p, beta_.col(j).data(), size_);
@@ -322,12 +327,14 @@ Status KernelGP::Predict(const ConstVectorRef& x, VectorRef mean) const {
 }
 
 Status KernelGP::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
-                                     VectorRef latent_variance, VectorRef noisy_variance) const {
+                                     VectorRef latent_variance, VectorRef noisy_variance,
+                                     Workspace& workspace) const {
   if (!VectorOk(x, input_dim()) || mean.size() != num_outputs_ ||
-      latent_variance.size() != num_outputs_ || noisy_variance.size() != num_outputs_) {
+      latent_variance.size() != num_outputs_ || noisy_variance.size() != num_outputs_ ||
+      workspace.column.size() < size_) {
     return Status::kInvalidInput;
   }
-  double* p = work_k_.data();
+  double* p = workspace.column.data();
   KernelColumn(x, size_, p);
   PackedForwardSolve(packed_.data(), size_, p);
   WritePrediction(p, kernel_->Evaluate(x, x), mean, latent_variance, noisy_variance);
@@ -347,10 +354,10 @@ Status KernelGP::AddAndPredict(const ConstVectorRef& x, const ConstVectorRef& y,
   const int m = size_;
   if (m >= capacity_) return Status::kCapacityExceeded;
 
-  // l = L^{-1} k_X(x) in the storage of row m, p = L^{-1} k_X(x_predict) in work_k_, both in
+  // l = L^{-1} k_X(x) in the storage of row m, p = L^{-1} k_X(x_predict) in own_.column, both in
   // one pass over L.
   double* l = row(m);
-  double* p = work_k_.data();
+  double* p = own_.column.data();
   KernelColumn(x, m, l);
   KernelColumn(x_predict, m, p);
   PackedForwardSolve2(packed_.data(), m, l, p);

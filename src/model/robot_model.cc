@@ -197,6 +197,71 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   return Status::kOk;
 }
 
+RobotModelState RobotModel::State() const {
+  const GaussianProcess& fitted_gp = gp();
+  RobotModelState state;
+  state.spec = spec_;
+  state.num_joints = num_joints_;
+  state.options = options_;
+  state.hyperparameters = hyper_;
+  state.form = fitted_gp.form();
+  if (const WeightSpaceGP* ws = fitted_gp.weight_space()) {
+    state.weight_space = ws->State();
+  } else {
+    state.inputs = fitted_gp.function_space()->inputs();
+    state.targets = fitted_gp.function_space()->targets();
+  }
+  return state;
+}
+
+RobotModel RobotModel::FromState(const RobotModelState& state) {
+  RobotModel model(state.spec, state.num_joints, state.options);
+  const int N = model.num_joints_;
+  const Hyperparameters& hyper = state.hyperparameters;
+  if (state.form == Form::kWeightSpace) {
+    if (!model.map_) {
+      throw std::invalid_argument("RobotModel::FromState: model '" + ToString(state.spec) +
+                                  "' for " + std::to_string(N) +
+                                  " joints has no feature map, so no weight-space form");
+    }
+    ValidateHyperparameters(hyper, *model.map_, N);
+    WeightSpaceGP posterior = WeightSpaceGP::FromState(state.weight_space);
+    const Eigen::Index rows = std::max<long>(0, posterior.num_samples());
+    model.gp_ = std::make_unique<GaussianProcess>(
+        GaussianProcess::FromWeightSpace(model.map_, hyper, N, state.options.form,
+                                         state.options.batch, std::move(posterior), rows));
+    model.hyper_ = hyper;
+    return model;
+  }
+  if (state.form != Form::kFunctionSpace) {
+    throw std::invalid_argument(
+        "RobotModel::FromState: form: expected weight_space or function_space, got " +
+        std::string(ToString(state.form)));
+  }
+  RequireSize("RobotModel::FromState inputs", state.inputs.cols(), model.input_dim(), "columns");
+  RequireSize("RobotModel::FromState targets", state.targets.cols(), N, "columns (joints)");
+  RequireSize("RobotModel::FromState targets", state.targets.rows(), state.inputs.rows(),
+              "rows (as in inputs)");
+  // The stored points are the model's own (a subset already, if one was taken): all of them,
+  // in function space, whatever the form option would choose for their number.
+  BatchFitOptions batch = state.options.batch;
+  batch.max_kernel_rows = 0;
+  std::unique_ptr<GaussianProcess> restored =
+      model.map_ ? std::make_unique<GaussianProcess>(model.map_, hyper, N, Form::kFunctionSpace,
+                                                     batch)
+                 : std::make_unique<GaussianProcess>(*model.kernel_, hyper, N, batch);
+  const Status status = restored->Fit(state.inputs, state.targets);
+  if (status != Status::kOk) {
+    throw std::invalid_argument(std::string("RobotModel::FromState: the stored points cannot be "
+                                            "refitted: ") +
+                                ToString(status));
+  }
+  if (model.kernel_) model.kernel_ = model.kernel_->WithParameters(hyper.shape);
+  model.gp_ = std::move(restored);
+  model.hyper_ = hyper;
+  return model;
+}
+
 const GaussianProcess& RobotModel::gp() const {
   if (!gp_) throw std::logic_error("RobotModel: not fitted");
   return *gp_;
@@ -205,6 +270,16 @@ const GaussianProcess& RobotModel::gp() const {
 GaussianProcess& RobotModel::mutable_gp() {
   if (!gp_) throw std::logic_error("RobotModel: not fitted");
   return *gp_;
+}
+
+Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean, Workspace& workspace) const {
+  return gp().Predict(x, mean, workspace);
+}
+
+Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
+                                       VectorRef latent_variance, VectorRef noisy_variance,
+                                       Workspace& workspace) const {
+  return gp().PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace);
 }
 
 Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean) const {
@@ -223,9 +298,11 @@ void RobotModel::PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* late
   mean->resize(X.rows(), N);
   if (latent_std) latent_std->resize(X.rows(), N);
   Vector x(input_dim()), m(N), lv(N), nv(N);
+  Workspace workspace = MakeWorkspace();
   for (Eigen::Index i = 0; i < X.rows(); ++i) {
     x = X.row(i).transpose();
-    const Status s = latent_std ? PredictWithVariance(x, m, lv, nv) : Predict(x, m);
+    const Status s = latent_std ? PredictWithVariance(x, m, lv, nv, workspace)
+                                : Predict(x, m, workspace);
     if (s != Status::kOk) {
       throw std::runtime_error(std::string("RobotModel::PredictRows: row ") + std::to_string(i) +
                                ": " + ToString(s));

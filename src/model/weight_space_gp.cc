@@ -1,7 +1,10 @@
 #include "structgp/model/weight_space_gp.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include <Eigen/Cholesky>
 
@@ -84,6 +87,7 @@ WeightSpaceGP::WeightSpaceGP(const Vector& prior_variance, double noise_variance
   staged_b_.setZero(D);
   staged_c_.setZero(D);
   staged_err_.setZero(num_outputs);
+  staged_f_.setZero(D);
   Reset(prior_variance, noise_variance, output_scales);
 }
 
@@ -184,8 +188,15 @@ bool WeightSpaceGP::InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) 
          y.allFinite();
 }
 
-void WeightSpaceGP::Commit(const double* x1, const double* x2, double* y1,
-                           double* y2) const {
+void WeightSpaceGP::RequireNotStaged(const char* what) const {
+  if (staged_) {
+    throw std::logic_error(std::string("WeightSpaceGP::") + what +
+                           " const: an update is staged (UpdateAndPredict); call the non-const "
+                           "overload or ApplyStagedUpdate() first");
+  }
+}
+
+void WeightSpaceGP::Commit(const double* x1, const double* x2, double* y1, double* y2) {
   const int D = num_features();
   if (!staged_) {
     if (x1 != nullptr) internal::UpperTransposeTimes(factor_.data(), D, D, x1, x2, y1, y2);
@@ -203,11 +214,13 @@ void WeightSpaceGP::Commit(const double* x1, const double* x2, double* y1,
   staged_ = false;
 }
 
-void WeightSpaceGP::Stage(double r, double scale, double alpha) const {
+void WeightSpaceGP::Stage(double r, double scale, double alpha) {
   internal::CarlsonCoefficients(work_f_.data(), num_features(), r, scale, staged_a_.data(),
                                 staged_b_.data(), staged_c_.data());
   staged_inv_alpha_ = 1.0 / alpha;
   staged_err_ = work_err_;
+  staged_f_ = work_f_;
+  staged_scale_ = scale;
   staged_ = true;
 }
 
@@ -271,7 +284,54 @@ Status WeightSpaceGP::Downdate(const ConstVectorRef& phi, const ConstVectorRef& 
   return Status::kOk;
 }
 
-Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean) const {
+Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean, Workspace& workspace) const {
+  if (phi.size() != num_features() || mean.size() != num_outputs() || !phi.allFinite() ||
+      workspace.projection.size() != num_features()) {
+    return Status::kInvalidInput;
+  }
+  mean.noalias() = weights_.transpose() * phi;
+  if (staged_) {
+    // The staged sample (f = scale S^T phi_u, error e): A'^{-1} phi_u = scale S f / alpha, so
+    // W'^T phi = W^T phi + (h^T f / alpha) e with h = scale S^T phi (Sherman-Morrison).
+    double* h = workspace.projection.data();
+    internal::UpperTransposeTimes(factor_.data(), num_features(), num_features(), phi.data(),
+                                  nullptr, h, nullptr);
+    const double cross = staged_scale_ * workspace.projection.dot(staged_f_);
+    mean += (cross * staged_inv_alpha_) * staged_err_;
+    if (!std::isfinite(cross)) return Status::kInvalidInput;
+  }
+  return mean.allFinite() ? Status::kOk : Status::kInvalidInput;
+}
+
+Status WeightSpaceGP::PredictWithVariance(const ConstVectorRef& phi, VectorRef mean,
+                                          VectorRef latent_variance, VectorRef noisy_variance,
+                                          Workspace& workspace) const {
+  if (phi.size() != num_features() || mean.size() != num_outputs() ||
+      latent_variance.size() != num_outputs() || noisy_variance.size() != num_outputs() ||
+      !phi.allFinite() || workspace.projection.size() != num_features()) {
+    return Status::kInvalidInput;
+  }
+  Vector& h = workspace.projection;
+  internal::UpperTransposeTimes(factor_.data(), num_features(), num_features(), phi.data(),
+                                nullptr, h.data(), nullptr);
+  mean.noalias() = weights_.transpose() * phi;
+  double quad = 0.0;  // phi^T A^{-1} phi >= 0
+  if (!staged_) {
+    quad = h.squaredNorm();
+  } else {
+    // Through the staged sample, as in UpdateAndPredict: with h = scale S^T phi,
+    // phi^T A'^{-1} phi = h^T h - (h^T f)^2 / alpha and W'^T phi = W^T phi + (h^T f / alpha) e.
+    if (staged_scale_ != 1.0) h *= staged_scale_;
+    const double cross = h.dot(staged_f_);
+    mean += (cross * staged_inv_alpha_) * staged_err_;
+    quad = std::max(0.0, h.squaredNorm() - cross * cross * staged_inv_alpha_);
+  }
+  latent_variance = (noise_variance_ * quad) * output_scales_.cwiseAbs2();
+  noisy_variance = latent_variance + noise_variance_ * output_scales_.cwiseAbs2();
+  return mean.allFinite() && std::isfinite(quad) ? Status::kOk : Status::kInvalidInput;
+}
+
+Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean) {
   if (phi.size() != num_features() || mean.size() != num_outputs() || !phi.allFinite()) {
     return Status::kInvalidInput;
   }
@@ -281,8 +341,7 @@ Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean) const {
 }
 
 Status WeightSpaceGP::PredictWithVariance(const ConstVectorRef& phi, VectorRef mean,
-                                          VectorRef latent_variance,
-                                          VectorRef noisy_variance) const {
+                                          VectorRef latent_variance, VectorRef noisy_variance) {
   if (phi.size() != num_features() || mean.size() != num_outputs() ||
       latent_variance.size() != num_outputs() || noisy_variance.size() != num_outputs() ||
       !phi.allFinite()) {
@@ -339,17 +398,32 @@ Status WeightSpaceGP::UpdateAndPredict(const ConstVectorRef& phi_update, const C
 }
 
 const Matrix& WeightSpaceGP::weights() const {
-  Commit(nullptr, nullptr, nullptr, nullptr);
+  RequireNotStaged("weights");
+  return weights_;
+}
+
+const Matrix& WeightSpaceGP::weights() {
+  ApplyStagedUpdate();
   return weights_;
 }
 
 const Matrix& WeightSpaceGP::covariance_factor() const {
-  Commit(nullptr, nullptr, nullptr, nullptr);
+  RequireNotStaged("covariance_factor");
   return factor_;
 }
 
+const Matrix& WeightSpaceGP::covariance_factor() {
+  ApplyStagedUpdate();
+  return factor_;
+}
+
+WeightSpaceGPState WeightSpaceGP::State() {
+  ApplyStagedUpdate();
+  return std::as_const(*this).State();
+}
+
 WeightSpaceGPState WeightSpaceGP::State() const {
-  Commit(nullptr, nullptr, nullptr, nullptr);
+  RequireNotStaged("State");
   WeightSpaceGPState state;
   state.prior_variance = prior_variance_;
   state.noise_variance = noise_variance_;
@@ -434,8 +508,13 @@ Vector WeightSpaceGP::effective_prior_variance() const {
   return prior_variance_ * std::exp(log_prior_broadening_);
 }
 
+Matrix WeightSpaceGP::WeightCovariance(int output) {
+  ApplyStagedUpdate();
+  return std::as_const(*this).WeightCovariance(output);
+}
+
 Matrix WeightSpaceGP::WeightCovariance(int output) const {
-  Commit(nullptr, nullptr, nullptr, nullptr);
+  RequireNotStaged("WeightCovariance");
   if (output < 0 || output >= num_outputs()) {
     throw std::invalid_argument("WeightSpaceGP::WeightCovariance: output " +
                                 std::to_string(output) + " out of range [0, " +
@@ -448,6 +527,16 @@ Matrix WeightSpaceGP::WeightCovariance(int output) const {
 
 double WeightSpaceGP::LogMarginalLikelihood() const { return LogMarginalLikelihood(nullptr); }
 
+double WeightSpaceGP::LogMarginalLikelihood() {
+  ApplyStagedUpdate();
+  return std::as_const(*this).LogMarginalLikelihood(nullptr);
+}
+
+double WeightSpaceGP::LogMarginalLikelihood(EvidenceGradient* gradient) {
+  ApplyStagedUpdate();
+  return std::as_const(*this).LogMarginalLikelihood(gradient);
+}
+
 // With C = Phi Lambda_e Phi^T + sigma^2 V^{-1} (weights V, effective prior Lambda_e) and
 // A = Phi^T V Phi + sigma^2 Lambda_e^{-1}:
 //   y^T C^{-1} y = (y^T V y - w^T A w) / sigma^2,
@@ -455,7 +544,7 @@ double WeightSpaceGP::LogMarginalLikelihood() const { return LogMarginalLikeliho
 // and output j (scale s_j) adds m log s_j^2 and divides the quadratic form by s_j^2.
 // Derivations of the gradient are in docs/derivations.md.
 double WeightSpaceGP::LogMarginalLikelihood(EvidenceGradient* gradient) const {
-  Commit(nullptr, nullptr, nullptr, nullptr);
+  RequireNotStaged("LogMarginalLikelihood");
   const double D = num_features();
   const double m = sample_count_;
   const double s2n = noise_variance_;

@@ -63,6 +63,15 @@ class GaussianProcess {
   GaussianProcess(const Kernel& kernel, const Hyperparameters& hyper, int num_outputs,
                   const BatchFitOptions& batch = BatchFitOptions());
 
+  /// A weight-space model in the given posterior (WeightSpaceGP::FromState, say), without a
+  /// fit: form() is kWeightSpace, data_rows() = fit_rows() = rows. The posterior must have
+  /// map->dim() features and num_outputs outputs (std::invalid_argument otherwise); it is
+  /// taken as it is (its prior is not compared with PriorVariance(*map, hyper)).
+  static GaussianProcess FromWeightSpace(std::shared_ptr<const FeatureMap> map,
+                                         const Hyperparameters& hyper, int num_outputs,
+                                         Form form, const BatchFitOptions& batch,
+                                         WeightSpaceGP posterior, Eigen::Index rows);
+
   /// Fits X (m x input_dim) and Y (m x P); with Form::kAuto picks the form from D and m
   /// (the form's choice uses all m rows; the function space then keeps at most
   /// BatchFitOptions::max_kernel_rows of them). Throws std::invalid_argument on bad sizes,
@@ -84,6 +93,23 @@ class GaussianProcess {
   int input_dim() const;
   int num_outputs() const { return num_outputs_; }
 
+  /// Scratch of the const predictions, owned by the caller (one per thread).
+  struct Workspace {
+    Vector features;                         ///< phi(x), D (weight space)
+    WeightSpaceGP::Workspace weight_space;   ///< weight space
+    KernelGP::Workspace function_space;      ///< function space
+  };
+  /// A workspace for the fitted form (allocates). After a refit or a Reserve of the function
+  /// space, make a new one.
+  Workspace MakeWorkspace() const;
+
+  /// Predictive mean (P) and variances at x with the caller's workspace: allocation-free, and
+  /// safe for concurrent calls on one const model with one workspace each (see KernelGP for
+  /// the kernels that allow it). kInvalidInput on bad input or an unfitted model.
+  Status Predict(const ConstVectorRef& x, VectorRef mean, Workspace& workspace) const;
+  Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
+                             VectorRef noisy_variance, Workspace& workspace) const;
+  /// The same with a workspace made for the call: allocates (not for the real-time path).
   Status Predict(const ConstVectorRef& x, VectorRef mean) const;
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
                              VectorRef noisy_variance) const;
@@ -109,7 +135,7 @@ class GaussianProcess {
   BatchFitOptions batch_;
   Eigen::Index data_rows_ = 0;
   Eigen::Index fit_rows_ = 0;
-  mutable Vector phi_;  // feature scratch (D)
+  Vector phi_;  // feature scratch of Add (D)
 };
 
 }  // namespace structgp

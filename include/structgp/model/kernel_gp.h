@@ -15,8 +15,13 @@
 /// AddAndPredict allocate nothing and throw nothing (the kernel's Evaluate must not allocate
 /// either); bad input gives kInvalidInput, a full model kCapacityExceeded, and a
 /// point whose conditional variance is not positive (a duplicate with tiny noise)
-/// kNotPositiveDefinite, each leaving the model unchanged. A model is not safe for concurrent
-/// calls, including const ones (they share the model's scratch vector and the kernel's).
+/// kNotPositiveDefinite, each leaving the model unchanged.
+///
+/// Threads (model apart from workspace): the const predictions take their scratch from a
+/// Workspace the caller owns (MakeWorkspace(), one per thread), so one const model may serve
+/// concurrent readers whose kernel's Evaluate is thread-safe (every kernel except
+/// FeatureKernel, and sums holding one). The overloads without a workspace are non-const and
+/// use the model's own scratch (allocation-free, not for concurrent use).
 ///
 /// Memory: Reserve(c) holds c (c + 1) / 2 doubles for L (16 MB at c = 2000, 64 MB at
 /// c = 4000) plus c (input_dim + 2 P + 1) doubles. Add, Predict and AddAndPredict stream the
@@ -72,15 +77,31 @@ class KernelGP {
   /// each case.
   Status Add(const ConstVectorRef& x, const ConstVectorRef& y);
 
+  /// Scratch of the const predictions: one kernel column (at least size() doubles).
+  struct Workspace {
+    Vector column;
+  };
+  /// A workspace for up to capacity() points (capacity() doubles; allocates). After a
+  /// Reserve beyond its size, make a new one.
+  Workspace MakeWorkspace() const;
+
   /// Predictive mean (size P) at x. O(m^2) (a forward substitution). kInvalidInput (nothing
-  /// written) on a wrong size or NaN/Inf; kInvalidInput also when the result overflows (the
-  /// outputs are then not to be used). With no stored points the prior: mean 0.
-  Status Predict(const ConstVectorRef& x, VectorRef mean) const;
+  /// written) on a wrong size or NaN/Inf, or a workspace with fewer than size() entries;
+  /// kInvalidInput also when the result overflows (the outputs are then not to be used).
+  /// With no stored points the prior: mean 0. Allocation-free; safe for concurrent calls
+  /// with one workspace each (see the file comment).
+  Status Predict(const ConstVectorRef& x, VectorRef mean, Workspace& workspace) const;
   /// Predictive mean, latent and noisy variance (each size P) at x. O(m^2). The latent
   /// variance s_j^2 (k(x,x) - p^T p) is clamped at 0 against rounding; the noisy variance
   /// adds s_j^2 sigma_n^2. kInvalidInput (nothing written) on bad sizes or NaN/Inf.
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
-                             VectorRef noisy_variance) const;
+                             VectorRef noisy_variance, Workspace& workspace) const;
+  /// The same with the model's own workspace (allocation-free; not for concurrent use).
+  Status Predict(const ConstVectorRef& x, VectorRef mean) { return Predict(x, mean, own_); }
+  Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
+                             VectorRef noisy_variance) {
+    return PredictWithVariance(x, mean, latent_variance, noisy_variance, own_);
+  }
 
   /// Appends (x, y) and predicts at x_predict with the updated model, reading L once (both
   /// forward substitutions share one pass over the factor). Equal to Add followed by
@@ -144,7 +165,7 @@ class KernelGP {
   Matrix Y_;       // capacity x P
   Matrix beta_;    // capacity x P, L^{-1} Y (each output's column contiguous)
 
-  mutable Vector work_k_;  // kernel column / forward-solve result of a prediction (capacity)
+  Workspace own_;  // of the non-const predictions and AddAndPredict (capacity)
 };
 
 }  // namespace structgp

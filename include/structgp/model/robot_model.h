@@ -57,6 +57,25 @@ struct Component {
   Vector latent_variance; ///< per joint (N)
 };
 
+/// Everything a fitted RobotModel's later results depend on (RobotModel::State), so that
+/// RobotModel::FromState restores it exactly: the same predictions, components, evidence and
+/// online updates, bit for bit.
+struct RobotModelState {
+  ModelSpec spec;
+  int num_joints = 0;
+  RobotModelOptions options;
+  /// RobotModel::hyperparameters() (a kernel's parameters in shape).
+  Hyperparameters hyperparameters;
+  /// The form the model was fitted in: kWeightSpace or kFunctionSpace (never kAuto).
+  Form form = Form::kWeightSpace;
+  /// Weight space: the posterior (restored as it is, without a fit).
+  WeightSpaceGPState weight_space;
+  /// Function space: the stored points (m x input_dim, m x N), whose factorisation
+  /// FromState recomputes (O(m^3), exactly as the fit that stored them did).
+  Matrix inputs;
+  Matrix targets;
+};
+
 class RobotModel {
  public:
   /// Throws std::invalid_argument when the spec cannot be built for num_joints (an effect on
@@ -97,14 +116,36 @@ class RobotModel {
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
 
   bool fitted() const { return gp_ != nullptr; }
+
+  /// The model's complete state. Throws std::logic_error when not fitted. O(D^2) or
+  /// O(m input_dim) copy; allocates.
+  RobotModelState State() const;
+  /// The model in exactly the given state. Weight space: no fit, O(D^2) (the posterior is
+  /// taken from the state; gp().data_rows() is then its num_samples()); function space: the
+  /// stored points are factorised again, all of them and in function space, O(m^3).
+  /// Throws std::invalid_argument naming what is wrong when the state is inconsistent (sizes
+  /// that do not match the spec, a posterior that breaks WeightSpaceGPState's invariants,
+  /// stored points that cannot be factorised).
+  static RobotModel FromState(const RobotModelState& state);
   const GaussianProcess& gp() const;
   GaussianProcess& mutable_gp();
 
-  /// Predictive mean (N) and variances at x; see GaussianProcess.
+  /// Scratch of the const predictions (GaussianProcess::Workspace), one per thread.
+  using Workspace = GaussianProcess::Workspace;
+  /// A workspace for the fitted model (allocates). Throws std::logic_error when not fitted.
+  Workspace MakeWorkspace() const { return gp().MakeWorkspace(); }
+
+  /// Predictive mean (N) and variances at x; see GaussianProcess. With a workspace:
+  /// allocation-free and safe for concurrent calls on one const model, one workspace each;
+  /// without: a workspace is made for the call (allocates).
+  Status Predict(const ConstVectorRef& x, VectorRef mean, Workspace& workspace) const;
+  Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
+                             VectorRef noisy_variance, Workspace& workspace) const;
   Status Predict(const ConstVectorRef& x, VectorRef mean) const;
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
                              VectorRef noisy_variance) const;
   /// Means (m x N) and, if not null, latent standard deviations (m x N) for every row of X.
+  /// One workspace for all rows (allocates).
   void PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std = nullptr) const;
 
   /// Names of the physical components, in order (weight-space feature-map models only).

@@ -59,8 +59,16 @@
 ///
 /// Real-time contract: after construction, Update, Downdate, Predict and PredictWithVariance
 /// allocate no memory, take no lock and throw no exception; bad input returns kInvalidInput
-/// and leaves the model unchanged. A model is not safe for concurrent calls, including const
-/// ones (they share the model's scratch vectors).
+/// and leaves the model unchanged.
+///
+/// Threads (model apart from workspace): const methods change nothing, not even the staged
+/// change of UpdateAndPredict (a const prediction reads through it by Sherman-Morrison, as
+/// UpdateAndPredict's own prediction does). Their scratch is a Workspace the caller owns
+/// (MakeWorkspace(), one per thread), so one const model may serve concurrent readers. The
+/// accessors weights(), covariance_factor(), State(), WeightCovariance and the evidence have
+/// non-const overloads that apply a staged change first; their const versions throw
+/// std::logic_error while one is staged (has_staged_update()). The predictions without a
+/// workspace are non-const and use the model's own scratch.
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
@@ -173,12 +181,27 @@ class WeightSpaceGP {
   /// unchanged) when that would lose definiteness; kInvalidInput on bad input.
   Status Downdate(const ConstVectorRef& phi, const ConstVectorRef& y, double weight = 1.0);
 
-  /// Predictive mean at phi into mean (size P). O(D P). kInvalidInput on bad input.
-  Status Predict(const ConstVectorRef& phi, VectorRef mean) const;
+  /// Scratch of the const predictions: S^T phi (D doubles).
+  struct Workspace {
+    Vector projection;
+  };
+  /// A workspace for this model (D doubles; allocates).
+  Workspace MakeWorkspace() const { return Workspace{Vector(num_features())}; }
+
+  /// Predictive mean at phi into mean (size P). O(D P) (O(D^2) while an update is staged).
+  /// kInvalidInput on bad input or a workspace of the wrong size. Allocation-free; safe for
+  /// concurrent calls with one workspace each.
+  Status Predict(const ConstVectorRef& phi, VectorRef mean, Workspace& workspace) const;
   /// Predictive mean and variances at phi: latent (of f) and noisy (of a new observation y),
-  /// each of size P. O(D^2). kInvalidInput on bad input.
+  /// each of size P. O(D^2). kInvalidInput on bad input or a workspace of the wrong size.
+  /// Allocation-free; safe for concurrent calls with one workspace each.
   Status PredictWithVariance(const ConstVectorRef& phi, VectorRef mean, VectorRef latent_variance,
-                             VectorRef noisy_variance) const;
+                             VectorRef noisy_variance, Workspace& workspace) const;
+  /// The same with the model's own scratch, after applying a staged update (allocation-free;
+  /// not for concurrent use).
+  Status Predict(const ConstVectorRef& phi, VectorRef mean);
+  Status PredictWithVariance(const ConstVectorRef& phi, VectorRef mean, VectorRef latent_variance,
+                             VectorRef noisy_variance);
 
   /// One control-loop step: Update with (phi_update, y, forgetting), then predict at
   /// phi_predict with the updated model. Exactly equal to calling the two in turn, but reads
@@ -191,24 +214,35 @@ class WeightSpaceGP {
 
   /// Log marginal likelihood log p(Y) of the (weighted) samples seen since the last Fit/Reset,
   /// under the current prior (including the prior broadening caused by forgetting). O(D^2 P).
+  /// Const versions: std::logic_error while an update is staged (see the file comment).
   double LogMarginalLikelihood() const;
+  double LogMarginalLikelihood();
   /// The same, with its derivatives. O(D^2 P).
   double LogMarginalLikelihood(EvidenceGradient* gradient) const;
+  double LogMarginalLikelihood(EvidenceGradient* gradient);
 
   /// Posterior mean of the weights, D x P.
   const Matrix& weights() const;
+  const Matrix& weights();
   /// Upper-triangular S with A^{-1} = S S^T (the strictly lower part is zero).
   const Matrix& covariance_factor() const;
+  const Matrix& covariance_factor();
   /// Posterior covariance of the weights of output j: s_j^2 sigma_n^2 S S^T. O(D^3).
   Matrix WeightCovariance(int output) const;
+  Matrix WeightCovariance(int output);
+  /// True between UpdateAndPredict and the next non-const call (which applies the change).
+  bool has_staged_update() const { return staged_; }
+  /// Applies a staged update now (one O(D^2) pass; nothing when none is staged).
+  void ApplyStagedUpdate() { Commit(nullptr, nullptr, nullptr, nullptr); }
   /// The prior variance currently in force: Lambda / lambda^n after n forgetting steps.
   Vector effective_prior_variance() const;
   const Vector& prior_variance() const { return prior_variance_; }
   double noise_variance() const { return noise_variance_; }
   const Vector& output_scales() const { return output_scales_; }
-  /// The model's complete state, after applying any change staged by UpdateAndPredict (the
-  /// results of the model are unchanged by that). O(D^2) copy; allocates.
+  /// The model's complete state (the non-const version applies a staged update first; the
+  /// const one throws std::logic_error while one is staged). O(D^2) copy; allocates.
   WeightSpaceGPState State() const;
+  WeightSpaceGPState State();
   /// A model in exactly the given state: every later result (prediction, update, evidence)
   /// is bit-identical to that of the model State() was taken from. Allocates all storage.
   /// Throws std::invalid_argument naming the field when the state breaks an invariant of
@@ -228,10 +262,12 @@ class WeightSpaceGP {
   // Brings S and W up to date with the sample deferred by UpdateAndPredict, if any, in one
   // pass over S; in the same pass y1 = S'^T x1 and y2 = S'^T x2 when x1 is not null (x2 may be
   // null: then only y1). Without a deferred sample it is a plain projection.
-  void Commit(const double* x1, const double* x2, double* y1, double* y2) const;
+  void Commit(const double* x1, const double* x2, double* y1, double* y2);
   // Prepares the rank-one change for f = work_f_ (already scaled), observation variance r and
   // covariance scale `scale`, with prediction error work_err_; Commit applies it.
-  void Stage(double r, double scale, double alpha) const;
+  void Stage(double r, double scale, double alpha);
+  // Throws std::logic_error naming `what` while an update is staged.
+  void RequireNotStaged(const char* what) const;
   // Evidence bookkeeping of one added (sign +1) or removed (sign -1) sample.
   void Account(const ConstVectorRef& y, double forgetting, double weight, double sign);
   bool InputOk(const ConstVectorRef& phi, const ConstVectorRef& y) const;
@@ -247,10 +283,10 @@ class WeightSpaceGP {
   double noise_variance_;  // sigma_n^2
   Vector output_scales_;   // s (P)
 
-  // S (D x D, upper triangle; A^{-1} = S S^T) and W (D x P). Mutable because a staged
-  // rank-one change is applied lazily, at the next call that reads them.
-  mutable Matrix factor_;
-  mutable Matrix weights_;
+  // S (D x D, upper triangle; A^{-1} = S S^T) and W (D x P). A staged rank-one change is
+  // applied at the next non-const call.
+  Matrix factor_;
+  Matrix weights_;
 
   // Data summaries for the evidence (all weighted): sum v y^2 per output, sum v, sum log v,
   // the log of the factor by which the prior variance has been broadened by forgetting.
@@ -265,17 +301,20 @@ class WeightSpaceGP {
   // weight variance may still grow before forgetting is refused (see the policy above).
   double log_variance_headroom_ = 0.0;
 
-  // The staged change: Carlson coefficients, 1 / alpha and the prediction error.
-  mutable bool staged_ = false;
-  mutable Vector staged_a_, staged_b_, staged_c_;
-  mutable double staged_inv_alpha_ = 0.0;
-  mutable Vector staged_err_;
+  // The staged change: Carlson coefficients, 1 / alpha, the prediction error, and for the
+  // const reads f = scale S^T phi and the scale.
+  bool staged_ = false;
+  Vector staged_a_, staged_b_, staged_c_;
+  double staged_inv_alpha_ = 0.0;
+  Vector staged_err_;
+  Vector staged_f_;
+  double staged_scale_ = 1.0;
 
-  // Scratch, sized at construction.
-  mutable Vector work_f_;     // S^T phi
-  mutable Vector work_h_;     // S^T phi2
-  mutable Vector work_gain_;  // scale * S f
-  mutable Vector work_err_;   // y - W^T phi (P)
+  // Scratch of the non-const methods, sized at construction.
+  Vector work_f_;     // S^T phi
+  Vector work_h_;     // S^T phi2
+  Vector work_gain_;  // scale * S f
+  Vector work_err_;   // y - W^T phi (P)
 };
 
 }  // namespace structgp
