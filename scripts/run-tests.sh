@@ -42,9 +42,9 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   tsan=${STRUCTGP_TSAN_BUILD_DIR:-build-tsan}
   cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=thread \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
-  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit
+  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit test_concurrent_predict
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
-    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom|batch_fit)\.'
+    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom|batch_fit|concurrent_predict)\.'
 
   # libFuzzer, each target from its seed corpus: a fixed number of inputs from a fixed seed, so that the result is reproducible (new bugs
   # are hunted with time-bounded runs: scripts/run-fuzzers.sh SECONDS).

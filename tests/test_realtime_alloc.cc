@@ -40,6 +40,8 @@ TEST(WeightSpaceGPRealTime, UpdateDowndatePredictAllocateNothing) {
     ASSERT_EQ(model.Fit(Phi.topRows(100), Y.topRows(100)), Status::kOk);
     Vector phi(D), phi2(D), y(P), mean(P), latent(P), noisy(P), none(0);
     Vector bad = Vector::Constant(D, std::nan(""));
+    WeightSpaceGP::Workspace workspace = model.MakeWorkspace();
+    const WeightSpaceGP& shared = model;
 
     testing::AllocationCounter guard;
     for (int i = 100; i < 200; ++i) {
@@ -51,7 +53,11 @@ TEST(WeightSpaceGPRealTime, UpdateDowndatePredictAllocateNothing) {
       ASSERT_EQ(model.PredictWithVariance(phi2, mean, latent, noisy), Status::kOk);
       ASSERT_EQ(model.UpdateAndPredict(phi2, y, phi, mean, latent, noisy, 0.999), Status::kOk);
       ASSERT_EQ(model.UpdateAndPredict(phi2, y, phi, mean, none, none), Status::kOk);
+      // Const predictions with the caller's workspace, through the staged update.
+      ASSERT_EQ(shared.Predict(phi2, mean, workspace), Status::kOk);
+      ASSERT_EQ(shared.PredictWithVariance(phi2, mean, latent, noisy, workspace), Status::kOk);
       ASSERT_EQ(model.Downdate(phi2, y), Status::kOk);
+      ASSERT_EQ(shared.PredictWithVariance(phi2, mean, latent, noisy, workspace), Status::kOk);
       ASSERT_EQ(model.Update(bad, y), Status::kInvalidInput);
     }
     if (testing::CountsEveryAllocation()) {
