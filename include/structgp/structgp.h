@@ -50,6 +50,7 @@
 // Diagnosis: which physical effect the model is missing.
 #include "structgp/fit/fit_model.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
 
 // Online learning next to a control loop.
 #include "structgp/online/triple_buffer.h"

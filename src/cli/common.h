@@ -13,6 +13,7 @@
 
 #include "structgp/core/types.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/internal/text.h"
 #include "structgp/io/robot_data.h"
@@ -109,12 +110,7 @@ using internal::Table;
 /// "-89.0%" style relative change from a to b.
 std::string RelativeChange(double before, double after);
 
-/// "Coulomb friction", "cogging (period 0.3 rad)", ...
-std::string DescribeEffect(const Suggestion& suggestion);
-/// The model with every suggestion of the diagnosis added to its effects.
-ModelSpec WithSuggestions(const ModelSpec& spec, const Diagnosis& diagnosis);
-/// Human summary of a diagnosis: per joint errors and noise, where the error concentrates,
-/// and each suggestion with the --effects text that adds it.
+/// The library's DiagnosisReport and the command that refits with every suggestion.
 std::string DiagnosisSummary(const Diagnosis& diagnosis, const ModelSpec& spec,
                              const DiagnosisOptions& options);
 
