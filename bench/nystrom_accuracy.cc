@@ -42,7 +42,7 @@
 #include <string>
 #include <vector>
 
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/model/kernel_gp.h"
 #include "structgp/model/weight_space_gp.h"
