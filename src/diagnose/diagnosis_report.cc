@@ -1,8 +1,10 @@
 #include "structgp/diagnose/diagnosis_report.h"
 
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
+#include "structgp/feature/effects.h"
 #include "structgp/internal/text.h"
 
 namespace structgp {
@@ -18,17 +20,11 @@ constexpr double kMinExplained = 0.05;
 }  // namespace
 
 std::string DescribeEffect(const Suggestion& s) {
-  if (s.effect == "viscous") return "viscous friction";
-  if (s.effect == "coulomb") return "Coulomb friction";
-  if (s.effect == "stribeck") return "Stribeck friction";
-  if (s.effect == "offset") return "a torque offset";
-  if (s.effect == "spring") return "a spring";
-  if (s.effect == "drift") return "drifting friction";
-  if (s.effect == "cogging") {
-    const auto it = s.params.find("period");
-    return it == s.params.end() ? "cogging" : Format("cogging (period %.3g rad)", it->second);
+  try {
+    return MakeEffect(s.effect, s.params)->Describe();
+  } catch (const std::invalid_argument&) {
+    return s.effect;  // no longer registered: its name is all there is
   }
-  return s.effect;
 }
 
 ModelSpec WithSuggestions(const ModelSpec& spec, const Diagnosis& diagnosis) {
