@@ -18,14 +18,22 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build" -j "$jobs"
 ctest --test-dir "$build" --output-on-failure -j "$jobs"
 
-# The installed package works for a consumer: find_package(structgp) -> structgp::structgp.
+# The installed package works for a consumer: find_package(structgp) -> structgp::structgp,
+# and a program of under 30 lines fits, diagnoses and saves a model with it.
 prefix="$build/install-prefix"
 rm -rf "$prefix" "$build/consumer"
 cmake --install "$build" --prefix "$prefix" > /dev/null
 cmake -S examples/consumer -B "$build/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Release \
       -DCMAKE_PREFIX_PATH="$(pwd)/$prefix"
 cmake --build "$build/consumer"
-"$build/consumer/structgp_consumer"
+# The consumer fits, diagnoses and saves a model of the demo's slow log; the program then
+# evaluates the saved file on the fast log.
+rm -rf "$build/consumer-data"
+"$build/src/cli/structgp" demo --out "$build/consumer-data" --quiet > /dev/null
+"$build/consumer/structgp_consumer" "$build/consumer-data/train.csv" \
+  "$build/consumer-data/consumer_model.json"
+"$build/src/cli/structgp" evaluate --model "$build/consumer-data/consumer_model.json" \
+  --data "$build/consumer-data/test.csv"
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # ASan + UBSan: every test of the suite (benchmark programs are not tests, and the experiments'

@@ -8,6 +8,7 @@
 
 // Core: status codes, matrix types, input checks.
 #include "structgp/core/status.h"
+#include "structgp/core/row_subset.h"
 #include "structgp/core/types.h"
 #include "structgp/core/validate.h"
 
@@ -47,7 +48,9 @@
 #include "structgp/hyper/cross_validation.h"
 
 // Diagnosis: which physical effect the model is missing.
+#include "structgp/fit/fit_model.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
 
 // Online learning next to a control loop.
 #include "structgp/online/triple_buffer.h"

@@ -160,8 +160,54 @@ Augmented Augment(const BaseFit& base, const Matrix& G, const Matrix& cross, con
 
 }  // namespace
 
+const char* ToString(DiagnosisStatus status) {
+  switch (status) {
+    case DiagnosisStatus::kOk:
+      return "ok";
+    case DiagnosisStatus::kNumericalFailure:
+      return "numerical_failure";
+  }
+  return "unknown";
+}
+
+bool DiagnosisOptions::IsValid(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = "DiagnosisOptions::" + message;
+    return false;
+  };
+  auto number = [](double v) {
+    std::ostringstream os;
+    os << v;
+    return os.str();
+  };
+  if (folds < 2) return fail("folds: expected >= 2, got " + std::to_string(folds));
+  if (!(min_log_evidence_gain >= 0.0) || !std::isfinite(min_log_evidence_gain)) {
+    return fail("min_log_evidence_gain: expected a finite value >= 0 nats, got " +
+                number(min_log_evidence_gain));
+  }
+  if (!(min_relative_rms_gain >= 0.0 && min_relative_rms_gain < 1.0)) {
+    return fail("min_relative_rms_gain: expected a fraction in [0, 1), got " +
+                number(min_relative_rms_gain));
+  }
+  if (max_suggestions < 0) {
+    return fail("max_suggestions: expected >= 0, got " + std::to_string(max_suggestions));
+  }
+  if (bins < 1) return fail("bins: expected >= 1, got " + std::to_string(bins));
+  if (!(min_cogging_period > 0.0 && min_cogging_period < max_cogging_period) ||
+      !std::isfinite(max_cogging_period)) {
+    return fail("min_cogging_period, max_cogging_period: expected 0 < min < max < inf rad, got " +
+                number(min_cogging_period) + " and " + number(max_cogging_period));
+  }
+  if (nystrom_features < 1) {
+    return fail("nystrom_features: expected >= 1, got " + std::to_string(nystrom_features));
+  }
+  return true;
+}
+
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options) {
+  std::string invalid;
+  if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
   if (!model.fitted() || (!model.feature_map() && !model.kernel())) {
     throw std::invalid_argument("Diagnose: needs a fitted model");
   }
@@ -189,10 +235,6 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   if (base_map) {
     out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) + ")";
   } else {
-    if (options.nystrom_features < 1) {
-      throw std::invalid_argument("Diagnose: nystrom_features must be >= 1, got " +
-                                  std::to_string(options.nystrom_features));
-    }
     const Matrix Z = SelectInducingStates(*model.kernel(), X,
                                           std::min(options.nystrom_features, m / 2));
     base_map = std::make_shared<NystromFeatureMap>(*model.kernel(), Z);
@@ -261,8 +303,10 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     WeightSpaceGP refit(PriorVariance(*base_map, h), h.noise_variance(), N,
                         h.output_scales());
     if (refit.Fit(Phi, Y) != Status::kOk) {
-      throw std::runtime_error("Diagnose: the model could not be refitted on these data "
-                               "(posterior precision not positive definite)");
+      out.status = DiagnosisStatus::kNumericalFailure;
+      out.message = "the model could not be refitted on these data (posterior precision not "
+                    "positive definite)";
+      return out;
     }
     refit_residual = Y - Phi * refit.weights();
   }
@@ -371,8 +415,11 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     for (int fit = 0; fit < num_fits; ++fit) {
       base[fit] = FitBase(Gs[fit], crosses[fit], B, lambda, s2n);
       if (!base[fit].ok) {
-        throw std::runtime_error("Diagnose: the model's posterior could not be factorised on "
-                                 "these data (not positive definite)");
+        out.status = DiagnosisStatus::kNumericalFailure;
+        out.message = "the model's posterior could not be factorised on these data (not "
+                      "positive definite)";
+        out.suggestions.clear();
+        return out;
       }
     }
     // Held-out squared error per joint of the model refitted without the candidate.
@@ -459,6 +506,8 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
 
 std::string ToJson(const Diagnosis& d) {
   nlohmann::ordered_json j;
+  j["status"] = ToString(d.status);
+  if (!d.message.empty()) j["message"] = d.message;
   j["model"] = d.model;
   j["num_samples"] = d.num_samples;
   j["features"] = d.features;

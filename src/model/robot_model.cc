@@ -198,6 +198,14 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   return Status::kOk;
 }
 
+void RobotModel::set_kernel_parameters(const ConstVectorRef& theta) {
+  if (!kernel_) {
+    throw std::invalid_argument("RobotModel::set_kernel_parameters: model '" + ToString(spec_) +
+                                "' has a feature map, not a kernel");
+  }
+  kernel_->set_parameters(theta);
+}
+
 const GaussianProcess& RobotModel::gp() const {
   if (!gp_) throw std::logic_error("RobotModel: not fitted");
   return *gp_;

@@ -50,6 +50,10 @@ struct DiagnosisOptions {
   /// scored against this many Nystrom features of the model's kernel (at most half the rows),
   /// inducing states chosen among the rows by greedy residual variance.
   int nystrom_features = 512;
+
+  /// True when the options are usable; otherwise false with the reason in *error (may be
+  /// null).
+  bool IsValid(std::string* error) const;
 };
 
 /// A variable along which a joint's residual concentrates.
@@ -84,7 +88,22 @@ struct Suggestion {
   std::string spec;     ///< the text to add to --effects, e.g. "cogging@3:period=0.3"
 };
 
+/// How a diagnosis ended.
+enum class DiagnosisStatus {
+  kOk,
+  /// The model could not be refitted or factorised on these data (not positive definite):
+  /// no suggestion is made; what was found before the failure is kept. Diagnosis::message
+  /// says which step failed.
+  kNumericalFailure,
+};
+
+/// "ok", "numerical_failure".
+const char* ToString(DiagnosisStatus status);
+
 struct Diagnosis {
+  DiagnosisStatus status = DiagnosisStatus::kOk;
+  /// Empty when status is kOk, else what failed.
+  std::string message;
   std::vector<JointFinding> joints;
   std::vector<Suggestion> suggestions;  ///< highest score first
   int num_samples = 0;
@@ -99,8 +118,9 @@ struct Diagnosis {
 
 /// Diagnoses a fitted model on data X (m x model.input_dim()),
 /// Y (m x N) and times t (size m, or empty when the data have none: drift is then not tried).
-/// Rows must be in time order (the folds are contiguous). Throws std::invalid_argument on bad
-/// sizes, NaN/Inf, too few rows for the folds, or a model that is not fitted.
+/// Rows must be in time order (the folds are contiguous). Throws std::invalid_argument on
+/// invalid options, bad sizes, NaN/Inf, too few rows for the folds, or a model that is not
+/// fitted; numerical trouble is Diagnosis::status.
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options = {});
 

@@ -76,6 +76,10 @@ class RobotModel {
   /// The kernel of rbf/rbfs models, and of pol models beyond max_explicit_features (null
   /// for models with a feature map).
   const Kernel* kernel() const { return kernel_.get(); }
+  /// Sets the parameters of kernel() (rbf/rbfs models, pol beyond its explicit map) for the
+  /// next Fit. Throws std::invalid_argument without a kernel or on a size mismatch or a value
+  /// that is not finite.
+  void set_kernel_parameters(const ConstVectorRef& theta);
 
   /// Default hyper-parameters for torques Y (m x N): output scales from the torque spread,
   /// noise 10% of it, broad priors on friction and effects, the base's default shape.
