@@ -41,7 +41,7 @@
 #include <vector>
 
 #include "alloc_counter.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/model/weight_space_gp.h"
 #include "structgp/online/online_learner.h"

@@ -43,7 +43,7 @@
 #include <vector>
 
 #include "experiment_program.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/model/kernel_gp.h"
 #include "structgp/model/weight_space_gp.h"

@@ -70,7 +70,7 @@
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/friction_feature_map.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/fit/fit_model.h"

@@ -70,6 +70,26 @@ TEST(FitModel, EvidenceEqualsTheStepsByHand) {
   EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
 }
 
+// Unit output scales: no profile, the scales stay 1, LBFGS from the defaults.
+TEST(FitModel, UnitOutputScalesEqualTheStepsByHand) {
+  const sim::Dataset& d = Scenario().train;
+  const ModelSpec spec = Spec("pol");
+  FitOptions options;
+  options.output_scaling = OutputScaling::kUnit;
+  const FittedModel fit = FitModel(spec, d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  EXPECT_EQ(fit.model.hyperparameters().log_output_scale, Vector::Zero(2));
+
+  RobotModel reference(spec, 2);
+  const SufficientStatistics stats = AccumulateStatistics(*reference.feature_map(), d.X, d.Y);
+  const WeightSpaceEvidence evidence(reference.feature_map(), stats);
+  Hyperparameters h = reference.DefaultHyperparameters(d.Y);
+  h.log_output_scale.setZero();
+  ASSERT_TRUE(FitHyperparameters(evidence, MaximumLikelihoodOptions(), &h).usable());
+  ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
+}
+
 TEST(FitModel, CrossValidationEqualsTheStepsByHand) {
   const sim::Dataset& d = Scenario().train;
   const ModelSpec spec = Spec("pol");

@@ -23,7 +23,6 @@
 #include "structgp/feature/effects.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
-#include "structgp/feature/nystrom_feature_map.h"
 
 // Kernels for the function-space (kernel) form.
 #include "structgp/kernel/kernel.h"
@@ -31,6 +30,7 @@
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 
 // Models: weight space (rank-one updates), kernel form, automatic choice, robot models from specs.
 #include "structgp/model/sufficient_statistics.h"

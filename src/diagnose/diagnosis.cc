@@ -12,7 +12,7 @@
 #include "structgp/core/validate.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/hyper/hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"

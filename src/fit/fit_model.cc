@@ -134,7 +134,8 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
   accumulate.num_threads = fit->options().num_threads;
   SufficientStatistics stats = AccumulateStatistics(*map, X, Y, accumulate);
   const WeightSpaceEvidence evidence(map, std::move(stats));
-  if (fit->options().profile_noise_and_scales) {
+  if (fit->options().profile_noise_and_scales &&
+      fit->options().output_scaling == OutputScaling::kPerJointRms) {
     if (!fit->Report("profiling the noise level and output scales by evidence")) return false;
     try {
       *h = ProfileNoiseAndScales(evidence, *h);
@@ -405,6 +406,7 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   FitSummary& summary = fit.summary();
   summary.rows = static_cast<int>(X.rows());
   Hyperparameters h = model->DefaultHyperparameters(Y);
+  if (options.output_scaling == OutputScaling::kUnit) h.log_output_scale.setZero();
   std::string failure;
   bool go_on = true;
   switch (options.method) {
