@@ -68,7 +68,6 @@
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/feature/pol_feature_map.h"
-#include "structgp/hyper/evidence.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/io/atomic_file.h"
 #include "structgp/kernel/feature_kernel.h"
@@ -76,7 +75,6 @@
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 #include "structgp/model/robot_model.h"
-#include "structgp/model/sufficient_statistics.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/friction.h"
 #include "structgp/sim/robot.h"
@@ -324,76 +322,45 @@ ModelSpec SpecOf(const ModelKind& kind) {
 const std::vector<double> kCvLogSigma = {-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 5.0, 8.0};
 const std::vector<double> kCvNoiseLevels = {0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0};
 
-// Prediction error of a fitted weight-space model on the validation states.
-void Validate(const RobotModel& model, const Problem& p, FitResult* result) {
-  Matrix prediction;
-  model.PredictRows(p.X_test, &prediction);
-  result->rms = MeanRms(p.F_test, prediction);
-}
-
-// Weight-space model (pol with D <= m, motor), hyper-parameters by blocked CV through the
-// library's FitModel. Its grid is the paper's: shape offsets from the default log sigma (0)
-// are the absolute values, and sigma_n relative to each joint's output scale gives the same
-// posterior mean as the same sigma_n with unit output scales (the mean does not depend on the
-// output scales), so the choice and the prediction are those of one global scale.
-FitResult FitWeightSpaceByCrossValidation(const ModelKind& kind, const Problem& p) {
+// Weight-space model (pol with D <= m, motor), hyper-parameters by ML-II or blocked CV through
+// the library's FitModel. The output scales stay at 1 (OutputScaling::kUnit): one global
+// torque scale and one noise level for all joints, the paper's setting. The CV grid is the
+// paper's: offsets from the default log sigma (0) are the absolute values.
+FitResult FitWeightSpace(const ModelKind& kind, const Problem& p, Tuning tuning,
+                         const Flags& f) {
   FitOptions options;
   options.model.form = Form::kWeightSpace;
-  options.method = HyperparameterMethod::kCrossValidation;
-  options.cv_folds = kNumFolds;
-  options.cv_shape_offsets = kCvLogSigma;
-  options.cv_noise_levels = kCvNoiseLevels;
+  options.output_scaling = OutputScaling::kUnit;
+  if (tuning == Tuning::kMaximumLikelihood) {
+    options.method = HyperparameterMethod::kEvidence;
+    options.evidence = MlOptions(f);
+  } else {
+    options.method = HyperparameterMethod::kCrossValidation;
+    options.cv_folds = kNumFolds;
+    options.cv_shape_offsets = kCvLogSigma;
+    options.cv_noise_levels = kCvNoiseLevels;
+  }
   const FittedModel fit = FitModel(SpecOf(kind), p.X_train, p.Y_train, Vector(), options);
   FitResult result;
   result.form = "weight space (D = " + std::to_string(fit.model.feature_map()->dim()) + ")";
+  if (tuning == Tuning::kMaximumLikelihood) {
+    result.note = std::string(ToString(fit.summary.termination)) + " after " +
+                  std::to_string(fit.summary.num_evaluations) + " evaluations";
+  } else if (fit.summary.IsUsable()) {
+    const Hyperparameters& hyper = fit.model.hyperparameters();
+    std::ostringstream note;
+    note << std::setprecision(3) << "sigma_n " << std::exp(hyper.log_noise_std);
+    if (hyper.shape.size() > 0) note << ", log sigma " << hyper.shape[0];
+    result.note = note.str();
+  }
   if (!fit.summary.IsUsable()) {
-    result.note = fit.summary.message;
+    result.note += (result.note.empty() ? "" : "; ") + fit.summary.message;
     return result;
   }
-  const Hyperparameters& hyper = fit.model.hyperparameters();
-  std::ostringstream note;
-  note << std::setprecision(3) << "sigma_n " << std::exp(hyper.log_noise_std);
-  if (hyper.shape.size() > 0) note << ", log sigma " << hyper.shape[0];
-  result.note = note.str();
-  Validate(fit.model, p, &result);
+  Matrix prediction;
+  fit.model.PredictRows(p.X_test, &prediction);
+  result.rms = MeanRms(p.F_test, prediction);
   return result;
-}
-
-// Weight-space model by ML-II with the output scales held at 1: one global torque scale and
-// one noise level for all joints, the paper's setting. Not through FitModel, which starts the
-// output scales at each joint's torque RMS and holds them there (or profiles them): for N >= 2
-// that weighs the joints differently in the evidence and moves the optimum.
-FitResult FitWeightSpaceByEvidence(const ModelKind& kind, const Problem& p, const Flags& f) {
-  const int n = static_cast<int>(p.Y_train.cols());
-  RobotModelOptions model_options;
-  model_options.form = Form::kWeightSpace;
-  RobotModel model(SpecOf(kind), n, model_options);
-  const FeatureMap& map = *model.feature_map();
-  Hyperparameters hyper = model.DefaultHyperparameters(p.Y_train);
-  hyper.log_output_scale.setZero();
-  FitResult result;
-  result.form = "weight space (D = " + std::to_string(map.dim()) + ")";
-  SufficientStatistics stats(map.dim(), n);
-  Matrix phi;
-  map.EvaluateRows(p.X_train, &phi);
-  stats.Accumulate(phi, p.Y_train);
-  WeightSpaceEvidence evidence(model.feature_map(), stats);
-  const MaximumLikelihoodSummary s = FitHyperparameters(evidence, MlOptions(f), &hyper);
-  result.note = std::string(ToString(s.termination)) + " after " +
-                std::to_string(s.num_evaluations) + " evaluations";
-  if (!s.usable()) return result;
-  if (model.Fit(p.X_train, p.Y_train, hyper) != Status::kOk) {
-    result.note += "; fit failed";
-    return result;
-  }
-  Validate(model, p, &result);
-  return result;
-}
-
-FitResult FitWeightSpace(const ModelKind& kind, const Problem& p, Tuning tuning,
-                         const Flags& f) {
-  return tuning == Tuning::kMaximumLikelihood ? FitWeightSpaceByEvidence(kind, p, f)
-                                              : FitWeightSpaceByCrossValidation(kind, p);
 }
 
 // Standard deviation of every column of X.
