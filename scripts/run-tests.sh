@@ -36,10 +36,11 @@ rm -rf "$build/consumer-data"
   --data "$build/consumer-data/test.csv"
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
-  # ASan + UBSan: every test of the suite (benchmark programs are not tests: left out).
+  # ASan + UBSan: every test of the suite (benchmark programs are not tests, and the experiments'
+  # quick checks are too slow under ASan: both left out).
   asan=${STRUCTGP_ASAN_BUILD_DIR:-build-asan}
   cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=address \
-        -DSTRUCTGP_BUILD_BENCHMARKS=OFF
+        -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF
   cmake --build "$asan" -j "$jobs"
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
@@ -49,7 +50,7 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # batch statistics, Nystrom features built on several threads); only their targets are built.
   tsan=${STRUCTGP_TSAN_BUILD_DIR:-build-tsan}
   cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=thread \
-        -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
+        -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
   cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
     ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom|batch_fit)\.'
