@@ -30,7 +30,9 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <memory>
@@ -39,7 +41,7 @@
 #include <vector>
 
 #include "alloc_counter.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/model/weight_space_gp.h"
 #include "structgp/online/online_learner.h"
@@ -58,9 +60,19 @@ constexpr int kPool = 4096;  // states cycled through
 constexpr double kForgetting = 0.9999;
 constexpr double kNoiseVariance = 1e-4;
 
+// STRUCTGP_BENCH_STEPS, or 1e5; at least 100. A value that is not all an integer ("5x") stops
+// the program with a message instead of being read as its leading digits.
 long Steps() {
   const char* env = std::getenv("STRUCTGP_BENCH_STEPS");
-  const long steps = env != nullptr ? std::atol(env) : 100000;
+  if (env == nullptr) return 100000;
+  char* end = nullptr;
+  errno = 0;
+  const long steps = std::strtol(env, &end, 10);
+  if (end == env || *end != '\0' || errno == ERANGE) {
+    std::fprintf(stderr, "bench_online_loop: STRUCTGP_BENCH_STEPS: expected an integer, got '%s'\n",
+                 env);
+    std::exit(2);
+  }
   return std::max(100L, steps);
 }
 

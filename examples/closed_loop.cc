@@ -16,13 +16,14 @@
 //       run takes as long as it simulates and its figures vary a little from run to run.
 // The model is k_pol (eq. 17) + the paper's friction bases as explicit features (D = 138).
 //
-//   build/examples/closed_loop [out_dir] [--no-threaded] [--seconds S]
+//   build/examples/closed_loop [out_dir] [--no-threaded] [--seconds S] [--trust-std N_m]
 //
 // Prints the tracking RMS of each run per second and overall, and writes
 // <out_dir>/closed_loop.csv (per tick: reference, errors, feedforward) and
 // <out_dir>/closed_loop.svg (tracking error over time and RMS per second). out_dir defaults to
 // ./closed-loop-out.
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -445,21 +446,22 @@ int main(int argc, char** argv) {
   bool threaded = true;
   double seconds = 10.0;
   double trust_std = kDefaultTrustStd;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--no-threaded") {
-      threaded = false;
-    } else if (a == "--seconds" && i + 1 < argc) {
-      seconds = std::atof(argv[++i]);
-    } else if (a == "--trust-std" && i + 1 < argc) {
-      trust_std = std::atof(argv[++i]);
-    } else if (!a.empty() && a[0] != '-') {
-      out_dir = a;
-    } else {
-      std::fprintf(
-          stderr, "usage: closed_loop [out_dir] [--no-threaded] [--seconds S] [--trust-std N_m]\n");
-      return 2;
-    }
+  CLI::App app("Learned feedforward in a simulated 1 kHz control loop.", "closed_loop");
+  app.add_option("out_dir", out_dir, "where closed_loop.csv and closed_loop.svg go")
+      ->capture_default_str();
+  app.add_flag_callback("--no-threaded", [&threaded]() { threaded = false; },
+                        "skip the run with the OnlineLearner thread");
+  app.add_option("--seconds", seconds, "simulated seconds, 1..600")->capture_default_str();
+  app.add_option("--trust-std", trust_std,
+                 "N m: predictive std at which the variance-scaled feedforward halves")
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "closed_loop: %s\nrun 'closed_loop --help' for the flags\n", e.what());
+    return 2;
   }
   if (!(seconds >= 1.0 && seconds <= 600.0)) {
     std::fprintf(stderr, "closed_loop: --seconds must be in [1, 600], got %g\n", seconds);

@@ -3,6 +3,7 @@
 //
 //   build/examples/engine_demo [num_samples]
 
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -14,9 +15,20 @@
 int main(int argc, char** argv) {
   using structgp::Matrix;
   using structgp::Vector;
-  const int n = argc > 1 ? std::atoi(argv[1]) : 5000;
+  int n = 5000;
+  CLI::App app("A Bayesian linear GP learns online and ends where a batch fit ends.",
+               "engine_demo");
+  app.add_option("num_samples", n, "samples learned, >= 10")->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "engine_demo: %s\nrun 'engine_demo --help' for the flags\n", e.what());
+    return 2;
+  }
   if (n < 10) {
-    std::fprintf(stderr, "engine_demo: num_samples must be >= 10, got %s\n", argv[1]);
+    std::fprintf(stderr, "engine_demo: num_samples must be >= 10, got %d\n", n);
     return 2;
   }
   const int D = 128, P = 7;

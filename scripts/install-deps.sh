@@ -14,7 +14,7 @@ packages=(
   nlohmann-json3-dev libcli11-dev
   chromium  # headless browser test of the HTML report (tests/test_report.cc)
   zlib1g-dev
-  python3-sklearn  # bench/sklearn_compare.py (side by side with scikit-learn; not in ctest)
+  python3-sklearn  # experiments/sklearn_compare.py (side by side with scikit-learn; not in ctest)
   clang libclang-rt-14-dev  # libFuzzer targets in fuzz/ (scripts/run-fuzzers.sh)
 )
 

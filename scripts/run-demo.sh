@@ -10,6 +10,7 @@ bash scripts/install-deps.sh
 
 build=${STRUCTGP_BUILD_DIR:-build}
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
-      -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXAMPLES=ON
+      -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF \
+      -DSTRUCTGP_BUILD_EXAMPLES=ON
 cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" --target structgp_cli
 "$build/src/cli/structgp" demo "$@"

@@ -25,7 +25,7 @@ jobs=$(nproc 2>/dev/null || echo 2)
 
 CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DSTRUCTGP_BUILD_FUZZERS=ON -DBUILD_TESTING=OFF -DSTRUCTGP_BUILD_BENCHMARKS=OFF \
-  -DSTRUCTGP_BUILD_EXAMPLES=OFF > /dev/null
+  -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF > /dev/null
 cmake --build "$build" -j "$jobs" --target "${targets[@]}"
 
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}

@@ -378,7 +378,7 @@ TEST(Cli, BadEffectSpecsNameTheCharacter) {
                    "joint number"},
       {"cogging@1:period=-1",
        "--effects: effect list 'cogging@1:period=-1', character 1: effect 'cogging': parameter "
-       "period must be in [1e-06, 1e+06], got -1"},
+       "'period' expected in [1e-06, 1e+06] rad, got -1"},
       {"viscous,,offset", "character 9"},
   };
   for (const auto& [effects, expected] : cases) {

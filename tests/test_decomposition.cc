@@ -20,14 +20,13 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
 
-#include "structgp/hyper/evidence.h"
-#include "structgp/hyper/marginal_likelihood.h"
+#include "structgp/fit/fit_model.h"
 #include "structgp/model/robot_model.h"
-#include "structgp/model/sufficient_statistics.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/friction.h"
 #include "structgp/sim/robot.h"
@@ -88,29 +87,15 @@ Problem MakeProblem(const sim::Robot& robot, const std::optional<sim::FrictionMo
 // default) would impose noise levels in the ratio of the joints' torques (here up to 5:1),
 // making the small joints' error bars too narrow.
 RobotModel FitByEvidence(const std::string& spec, const sim::Dataset& train) {
-  RobotModelOptions model_options;
-  model_options.form = Form::kWeightSpace;
-  RobotModel model(ParseModelSpec(spec), train.num_joints(), model_options);
-  SufficientStatistics stats(model.feature_map()->dim(), train.num_joints());
-  Matrix phi;
-  model.feature_map()->EvaluateRows(train.X, &phi);
-  stats.Accumulate(phi, train.Y);
-  WeightSpaceEvidence evidence(model.feature_map(), stats);
-  Hyperparameters hyper = model.DefaultHyperparameters(train.Y);
-  hyper.log_output_scale.setZero();
-  MaximumLikelihoodOptions options;
-  options.gradient_tolerance = 1e-7;
-  const MaximumLikelihoodSummary summary = FitHyperparameters(evidence, options, &hyper);
-  std::printf("  %s: D = %d, %s\n", spec.c_str(), model.feature_map()->dim(),
-              summary.BriefReport().c_str());
-  for (size_t i = 0; i < summary.parameter_names.size(); ++i) {
-    std::printf("    %s = %.3f\n", summary.parameter_names[i].c_str(),
-                HyperparameterLayout(*model.feature_map(), train.num_joints())
-                    .Flatten(hyper)[static_cast<Eigen::Index>(i)]);
-  }
-  EXPECT_TRUE(summary.usable());
-  EXPECT_EQ(model.Fit(train.X, train.Y, hyper), Status::kOk);
-  return model;
+  FitOptions options;
+  options.model.form = Form::kWeightSpace;
+  options.output_scaling = OutputScaling::kUnit;
+  options.evidence.gradient_tolerance = 1e-7;
+  FittedModel fit = FitModel(ParseModelSpec(spec), train.X, train.Y, train.t, options);
+  std::printf("  %s: D = %d, %s\n%s", spec.c_str(), fit.model.feature_map()->dim(),
+              fit.summary.BriefReport().c_str(), FitReport(fit.model, fit.summary).c_str());
+  EXPECT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  return std::move(fit.model);
 }
 
 struct ComponentScore {

@@ -5,12 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <utility>
 
 #include <gtest/gtest.h>
 
 #include "structgp/diagnose/diagnosis.h"
-#include "structgp/hyper/evidence.h"
-#include "structgp/hyper/marginal_likelihood.h"
+#include "structgp/fit/fit_model.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/sim/hidden_effect.h"
 
@@ -29,22 +29,16 @@ struct Outcome {
   double refit_residual_rms = -1;
 };
 
-// Fits `spec` on the slow log (noise and scales by evidence), diagnoses on the fast log.
+// Fits `spec` on the slow log: noise and output scales by evidence, the base's default shape
+// and block scales (the library's workflow with those groups held).
 RobotModel FitModel(const ModelSpec& spec, const sim::Dataset& train) {
-  RobotModel model(spec, train.num_joints());
-  Matrix X = train.X;
-  if (model.uses_time()) {
-    X.conservativeResize(Eigen::NoChange, X.cols() + 1);
-    X.col(X.cols() - 1) = train.t;
-  }
-  SufficientStatistics stats(model.feature_map()->dim(), train.num_joints());
-  Matrix Phi;
-  model.feature_map()->EvaluateRows(X, &Phi);
-  stats.Accumulate(Phi, train.Y);
-  WeightSpaceEvidence evidence(model.feature_map(), stats);
-  const Hyperparameters h = ProfileNoiseAndScales(evidence, model.DefaultHyperparameters(train.Y));
-  EXPECT_EQ(model.Fit(X, train.Y, h), Status::kOk);
-  return model;
+  FitOptions options;
+  options.evidence.optimize_shape = false;
+  options.evidence.optimize_block_scales = false;
+  options.evidence.optimize_noise = false;
+  FittedModel fit = structgp::FitModel(spec, train.X, train.Y, train.t, options);
+  EXPECT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  return std::move(fit.model);
 }
 
 Matrix WithTime(const sim::Dataset& d, bool time) {
@@ -205,19 +199,13 @@ TEST(FunctionSpacePol, DiagnosisNamesCoulombOnFourJoints) {
   auto fit = [&](const ModelSpec& spec) {
     auto model = std::make_unique<RobotModel>(spec, 4);
     EXPECT_EQ(model->feature_map(), nullptr);
-    // The kernel's default parameters in h.shape, the torque spread in the output scales.
-    Hyperparameters h = model->DefaultHyperparameters(scenario.train.Y);
-    // Every third row for the evidence: O(m^3) per evaluation.
-    const int rows = static_cast<int>(scenario.train.X.rows()) / 3;
-    Matrix Xs(rows, scenario.train.X.cols()), Ys(rows, 4);
-    for (int i = 0; i < rows; ++i) {
-      Xs.row(i) = scenario.train.X.row(3 * i);
-      Ys.row(i) = scenario.train.Y.row(3 * i);
-    }
-    MaximumLikelihoodOptions ml;
-    ml.max_iterations = 60;
-    EXPECT_TRUE(FitKernelHyperparameters(*model->kernel(), Xs, Ys, ml, &h).usable());
-    EXPECT_EQ(model->Fit(scenario.train.X, scenario.train.Y, h), Status::kOk);
+    FitOptions options;
+    // A third of the rows for the evidence: O(m^3) per evaluation.
+    options.max_evidence_rows = static_cast<int>(scenario.train.X.rows()) / 3;
+    options.evidence.max_iterations = 60;
+    const FitSummary summary =
+        FitModel(options, scenario.train.X, scenario.train.Y, scenario.train.t, model.get());
+    EXPECT_TRUE(summary.IsUsable()) << summary.message;
     return model;
   };
   const ModelSpec base = ParseModelSpec("pol");

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "feature_map_battery.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/feature_kernel.h"

@@ -8,6 +8,7 @@
 
 // Core: status codes, matrix types, input checks.
 #include "structgp/core/status.h"
+#include "structgp/core/row_subset.h"
 #include "structgp/core/types.h"
 #include "structgp/core/validate.h"
 #include "structgp/core/hyperparameters.h"
@@ -24,7 +25,6 @@
 #include "structgp/feature/effects.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
-#include "structgp/feature/nystrom_feature_map.h"
 
 // Kernels for the function-space (kernel) form.
 #include "structgp/kernel/kernel.h"
@@ -33,6 +33,7 @@
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 
 // Models: weight space (rank-one updates), kernel form, automatic choice, robot models from specs.
 #include "structgp/model/sufficient_statistics.h"
@@ -49,7 +50,9 @@
 #include "structgp/hyper/cross_validation.h"
 
 // Diagnosis: which physical effect the model is missing.
+#include "structgp/fit/fit_model.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
 
 // Online learning next to a control loop.
 #include "structgp/online/triple_buffer.h"

@@ -2,7 +2,7 @@
 #define STRUCTGP_SRC_CLI_COMMON_H_
 
 // Shared pieces of the structgp program: exit codes and the errors that map to them, reading
-// data for a model, fitting with a hyper-parameter method, errors per joint, tables, and
+// data for a model, the library's fit with progress lines, errors per joint, tables, and
 // writing every output only after all of them have been computed.
 
 #include <chrono>
@@ -13,6 +13,9 @@
 
 #include "structgp/core/types.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
+#include "structgp/fit/fit_model.h"
+#include "structgp/internal/text.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/report/report.h"
@@ -68,38 +71,18 @@ ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects);
 RobotModel MakeModel(const ModelSpec& spec, int num_joints,
                      const RobotModelOptions& options = RobotModelOptions());
 
-enum class HyperMethod { kMaximumLikelihood, kCrossValidation, kFixed };
-/// "ml", "cv", "fixed".
-HyperMethod ParseHyperMethod(const std::string& text);
+/// "ml", "cv", "fixed" (--hyper); UsageError for anything else.
+HyperparameterMethod ParseHyperMethod(const std::string& text);
 
-struct FitSettings {
-  HyperMethod method = HyperMethod::kMaximumLikelihood;
-  /// Contiguous folds of --hyper cv.
-  int cv_folds = 5;
-  /// rbf/rbfs with --hyper ml: the kernel's hyper-parameters are fitted on at most this many
-  /// rows, evenly spaced (each evidence evaluation is O(m^3)); the model then uses all rows.
-  int ml_max_rows = 1000;
-  /// Ceres prints one line per LBFGS iteration.
-  bool verbose = false;
-  /// Threads accumulating Phi^T Phi of feature-map models (AccumulateStatistics).
-  int num_threads = 1;
-};
+/// Fits the model with the library's workflow (FitModel), printing its progress lines.
+/// UsageError (naming --hyper) when the method does not suit the model or the data,
+/// NumericalError when the fit fails; the summary otherwise.
+FitSummary FitModel(const RobotData& data, const FitOptions& options, const Progress& progress,
+                    RobotModel* model);
 
-/// What a fit did, for the summary.
-struct FitInfo {
-  std::string method;              // one line
-  std::vector<std::string> notes;  // more lines (bounds reached, rows used)
-  double seconds = 0.0;
-};
-
-/// Chooses the hyper-parameters by the method and fits the model to all rows of the data.
-/// Throws UsageError for a method the model cannot use, NumericalError when the fit fails.
-void FitModel(const RobotData& data, const FitSettings& settings, const Progress& progress,
-              RobotModel* model, FitInfo* info);
-
-/// Multi-line summary of a fitted model: samples, D, form, hyper-parameters, evidence and the
-/// friction and effect coefficients per joint.
-std::string FitSummary(const RobotModel& model, const RobotData& data, const FitInfo& info);
+/// The summary of `structgp fit`: model and data, then the library's FitReport.
+std::string FitSummaryText(const RobotModel& model, const RobotData& data,
+                           const FitSummary& summary);
 
 /// Errors of predictions against measurements, per joint and overall.
 struct Errors {
@@ -122,19 +105,12 @@ std::vector<double> ToStd(const Vector& v);
 /// The errors of one model for a report.
 report::ModelErrors ReportErrors(const std::string& label, const Errors& errors);
 
-/// A table with aligned columns; rows[0] is the header.
-std::string Table(const std::vector<std::vector<std::string>>& rows, int indent = 2);
-/// printf-style formatting into a string.
-std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+using internal::Format;
+using internal::Table;
 /// "-89.0%" style relative change from a to b.
 std::string RelativeChange(double before, double after);
 
-/// "Coulomb friction", "cogging (period 0.3 rad)", ...
-std::string DescribeEffect(const Suggestion& suggestion);
-/// The model with every suggestion of the diagnosis added to its effects.
-ModelSpec WithSuggestions(const ModelSpec& spec, const Diagnosis& diagnosis);
-/// Human summary of a diagnosis: per joint errors and noise, where the error concentrates,
-/// and each suggestion with the --effects text that adds it.
+/// The library's DiagnosisReport and the command that refits with every suggestion.
 std::string DiagnosisSummary(const Diagnosis& diagnosis, const ModelSpec& spec,
                              const DiagnosisOptions& options);
 

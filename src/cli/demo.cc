@@ -80,7 +80,7 @@ class DemoCommand : public Command {
       throw UsageError(
           Format("--joint: the %s arm has %d joints, got %d", robot_.c_str(), N, joint_));
     }
-    FitSettings settings;
+    FitOptions settings;
     settings.method = ParseHyperMethod(hyper_);
     sim::HiddenEffectOptions o;
     o.effect = sim::ParseHiddenEffect(effect_);
@@ -109,14 +109,13 @@ class DemoCommand : public Command {
     // 1. The rigid-body model alone.
     const ModelSpec before_spec = ParseSpecFlags("pol", "");
     RobotModel before = MakeModel(before_spec, N);
-    FitInfo before_info;
     progress.Line("fitting pol on the slow log");
-    FitModel(train, settings, progress, &before, &before_info);
+    const FitSummary before_info = FitModel(train, settings, progress, &before);
     const Predictions before_pred = Predict(before, test);
     const Errors before_err = ComputeErrors(before_pred.mean, test.Y);
     std::printf("1. fit %s on train.csv (%d slow samples): D = %d features, %s\n",
                 ModelLabel(before_spec).c_str(), train.size(), before.feature_map()->dim(),
-                before_info.method.c_str());
+                before_info.method_description.c_str());
 
     std::printf("   test error on test.csv (%d fast samples), RMS per joint:", test.size());
     for (int j = 0; j < N; ++j) std::printf(" tau%d %.4g N m", j + 1, before_err.rms[j]);
@@ -128,6 +127,9 @@ class DemoCommand : public Command {
     const DiagnosisOptions diagnosis_options;
     const Diagnosis diagnosis =
         Diagnose(before, ModelInputs(before, train), train.Y, train.t, diagnosis_options);
+    if (diagnosis.status != DiagnosisStatus::kOk) {
+      throw NumericalError("the diagnosis failed: " + diagnosis.message);
+    }
     std::printf("2. diagnose %s on train.csv:\n", ModelLabel(before_spec).c_str());
     std::string summary = DiagnosisSummary(diagnosis, before_spec, diagnosis_options);
     // The refit hint of the summary names TRAIN.csv and MODEL; the demo does it itself.
@@ -152,9 +154,8 @@ class DemoCommand : public Command {
     if (!diagnosis.suggestions.empty()) {
       const ModelSpec after_spec = WithSuggestions(before_spec, diagnosis);
       RobotModel after = MakeModel(after_spec, N);
-      FitInfo after_info;
       progress.Line("fitting " + ModelLabel(after_spec) + " on the slow log");
-      FitModel(train, settings, progress, &after, &after_info);
+      FitModel(train, settings, progress, &after);
       const Predictions after_pred = Predict(after, test);
       after_err = ComputeErrors(after_pred.mean, test.Y);
       std::printf("3. refit %s on train.csv: D = %d features\n", ModelLabel(after_spec).c_str(),

@@ -58,8 +58,9 @@ class DiagnoseCommand : public Command {
       diagnosis = Diagnose(model, X, data.Y, data.t, options_);
     } catch (const std::invalid_argument& e) {
       throw UsageError(data_ + ": " + e.what());
-    } catch (const std::runtime_error& e) {
-      throw NumericalError(e.what());
+    }
+    if (diagnosis.status != DiagnosisStatus::kOk) {
+      throw NumericalError("the diagnosis failed on " + data_ + ": " + diagnosis.message);
     }
     std::vector<OutputFile> outputs = {{"--json", json_, ToJson(diagnosis)}};
     if (!report_.empty()) {

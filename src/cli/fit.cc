@@ -31,15 +31,15 @@ class FitCommand : public Command {
         ->check(CLI::IsMember({"ml", "cv", "fixed"}))
         ->capture_default_str();
     cmd->add_option("--out", out_, "Model file to write (replaced atomically)")->required();
-    cmd->add_option("--folds", settings_.cv_folds, "Contiguous folds of --hyper cv")
+    cmd->add_option("--folds", options_.cv_folds, "Contiguous folds of --hyper cv")
         ->check(CLI::Range(2, 1000))
         ->capture_default_str();
-    cmd->add_option("--ml-max-rows", settings_.ml_max_rows,
+    cmd->add_option("--ml-max-rows", options_.max_evidence_rows,
                     "rbf/rbfs with --hyper ml: rows (evenly spaced) on which the kernel's "
                     "hyper-parameters are fitted; the model then uses all rows")
         ->check(CLI::Range(10, 1000000))
         ->capture_default_str();
-    cmd->add_option("--threads", settings_.num_threads,
+    cmd->add_option("--threads", options_.num_threads,
                     "Threads accumulating Phi^T Phi of feature-map models (large data sets)")
         ->check(CLI::Range(1, 256))
         ->capture_default_str();
@@ -49,7 +49,7 @@ class FitCommand : public Command {
         ->check(CLI::Range(0, 100000000))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
-    cmd->add_flag("-v,--verbose", settings_.verbose, "One line per optimiser iteration");
+    cmd->add_flag("-v,--verbose", options_.evidence.verbose, "One line per optimiser iteration");
     cmd->footer(
         "Example:\n"
         "  structgp fit --data train.csv --model pol --effects coulomb@2 --out model.json\n"
@@ -61,18 +61,17 @@ class FitCommand : public Command {
   int Run() override {
     CheckOutputPath("--out", out_);  // before a long fit
     const ModelSpec spec = ParseSpecFlags(model_, effects_);
-    settings_.method = ParseHyperMethod(hyper_);
+    options_.method = ParseHyperMethod(hyper_);
     const Progress progress("fit", quiet_);
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
     RobotModelOptions options;
-    options.batch.num_threads = settings_.num_threads;
+    options.batch.num_threads = options_.num_threads;
     options.batch.max_kernel_rows = max_kernel_rows_;
     RobotModel model = MakeModel(spec, data.num_joints, options);
-    FitInfo info;
-    FitModel(data, settings_, progress, &model, &info);
+    const FitSummary summary = FitModel(data, options_, progress, &model);
     const std::string text = ModelFileText(model);
-    std::fputs(FitSummary(model, data, info).c_str(), stdout);
+    std::fputs(FitSummaryText(model, data, summary).c_str(), stdout);
     WriteOutputs({{"--out", out_, text}});
     std::printf("wrote %s\n", out_.c_str());
     return kExitOk;
@@ -80,7 +79,7 @@ class FitCommand : public Command {
 
  private:
   std::string data_, model_, effects_, hyper_ = "ml", out_;
-  FitSettings settings_;
+  FitOptions options_;
   int max_kernel_rows_ = kDefaultMaxKernelRows;
   bool quiet_ = false;
 };

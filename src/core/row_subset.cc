@@ -42,13 +42,4 @@ Matrix SelectRows(const ConstMatrixRef& X, const std::vector<int>& rows) {
   return out;
 }
 
-Vector SelectRows(const ConstVectorRef& x, const std::vector<int>& rows) {
-  Vector out(static_cast<Eigen::Index>(rows.size()));
-  for (size_t i = 0; i < rows.size(); ++i) {
-    CheckIndex(rows[i], i, x.size());
-    out[static_cast<Eigen::Index>(i)] = x[rows[i]];
-  }
-  return out;
-}
-
 }  // namespace structgp

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -12,7 +13,8 @@
 #include "structgp/core/validate.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/feature/friction_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/model/sufficient_statistics.h"
@@ -22,8 +24,6 @@ namespace structgp {
 namespace {
 
 using Index = std::vector<int>;
-
-constexpr double kTwoPi = 6.283185307179586;
 
 struct Candidate {
   std::string effect;
@@ -43,38 +43,6 @@ std::vector<std::pair<int, int>> Folds(int m, int k) {
     folds.emplace_back(begin, end - begin);
   }
   return folds;
-}
-
-// Period of a sinusoid in q that best explains r (least squares on sin, cos, 1).
-double EstimateCoggingPeriod(const Vector& q, const Vector& r, double lo, double hi) {
-  const int n = static_cast<int>(q.size());
-  auto explained = [&](double period) {
-    Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (int i = 0; i < n; ++i) {
-      const double a = kTwoPi * q[i] / period;
-      const Eigen::Vector3d f(std::sin(a), std::cos(a), 1.0);
-      G += f * f.transpose();
-      b += f * r[i];
-    }
-    G.diagonal().array() += 1e-9 * (G.trace() + 1.0);
-    return b.dot(G.ldlt().solve(b));
-  };
-  double best = lo, best_value = -1.0;
-  const int grid = 400;
-  for (int g = 0; g < grid; ++g) {
-    const double p = lo * std::pow(hi / lo, g / (grid - 1.0));
-    const double v = explained(p);
-    if (v > best_value) best_value = v, best = p;
-  }
-  // Refine around the best grid point.
-  const double step = std::pow(hi / lo, 1.0 / (grid - 1.0));
-  double a = best / step, c = best * step;
-  for (int it = 0; it < 40; ++it) {
-    const double m1 = a + (c - a) / 3, m2 = c - (c - a) / 3;
-    if (explained(m1) > explained(m2)) c = m2; else a = m1;
-  }
-  return 0.5 * (a + c);
 }
 
 std::vector<Concentration> Concentrations(const Vector& r, const Matrix& vars,
@@ -158,10 +126,181 @@ Augmented Augment(const BaseFit& base, const Matrix& G, const Matrix& cross, con
   return a;
 }
 
+// Gain in log evidence of joint j's torque when the columns E are added (Schur complement Z
+// of the base precision; docs/diagnosis.md):
+//   0.5 u_j^T Z^{-1} u_j / (sigma^2 s_j^2) - 0.5 (log|Z| + log|Lambda_E| - k log sigma^2).
+double LogEvidenceGain(const Augmented& aug, const Index& E, const Vector& lambda, double s2n,
+                       double s2j, int j) {
+  const Vector zu = aug.z.solve(Vector(aug.u.col(j)));
+  const double log_det_z = 2.0 * Matrix(aug.z.matrixL()).diagonal().array().log().sum();
+  double log_lambda_e = 0.0;
+  for (int col : E) log_lambda_e += std::log(lambda[col]);
+  const double k = static_cast<double>(E.size());
+  return 0.5 * aug.u.col(j).dot(zu) / (s2n * s2j) -
+         0.5 * (log_det_z + log_lambda_e - k * std::log(s2n));
+}
+
+// Noise level and output scales re-estimated by evidence on a log whose base statistics are
+// gram = Phi^T Phi and cross = Phi^T Y (the model's prior structure kept).
+Hyperparameters ProfileOnLog(const std::shared_ptr<const FeatureMap>& base_map, Matrix gram,
+                             Matrix cross, const ConstMatrixRef& Y, const Hyperparameters& h) {
+  SufficientStatistics base_stats(base_map->dim(), static_cast<int>(Y.cols()));
+  base_stats.gram = std::move(gram);
+  base_stats.cross = std::move(cross);
+  base_stats.y_squared = Y.colwise().squaredNorm().transpose();
+  base_stats.count = static_cast<int>(Y.rows());
+  WeightSpaceEvidence evidence(base_map, std::move(base_stats));
+  return ProfileNoiseAndScales(evidence, h);
+}
+
+// ResidualContext::score: the log-evidence gain of one joint's torque when an effect is added
+// to the base features, against the base alone (before any suggestion), with the noise and
+// scales profiled on the log as in the selection. Set up on the first call (one O(m D^2)
+// pass), so that effects which do not score cost nothing.
+class EvidenceScorer {
+ public:
+  EvidenceScorer(std::shared_ptr<const FeatureMap> base_map, const Matrix& Phi,
+                 const ConstMatrixRef& Y, const Matrix& Xt, const Hyperparameters& hyper,
+                 double broad_prior_std)
+      : base_map_(std::move(base_map)), Phi_(Phi), Y_(Y), Xt_(Xt), hyper_(hyper),
+        broad_variance_(broad_prior_std * broad_prior_std) {}
+
+  double Score(const std::string& name, int joint, const EffectParameters& params) {
+    std::shared_ptr<const Effect> effect;
+    try {
+      effect = MakeEffect(name, params);
+    } catch (const std::invalid_argument&) {
+      return -HUGE_VAL;
+    }
+    if (!ready_) SetUp();
+    if (!base_.ok) return -HUGE_VAL;
+    const int N = static_cast<int>(Y_.cols());
+    EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
+    Matrix E;
+    map.EvaluateRows(Xt_, &E);
+    const int D = static_cast<int>(Phi_.cols()), k = static_cast<int>(E.cols());
+    Matrix G(D + k, D + k), cross(D + k, N);
+    G.topLeftCorner(D, D) = gram_;
+    G.topRightCorner(D, k) = Phi_.transpose() * E;
+    G.bottomLeftCorner(k, D) = G.topRightCorner(D, k).transpose();
+    G.bottomRightCorner(k, k) = E.transpose() * E;
+    cross.topRows(D) = cross_;
+    cross.bottomRows(k) = E.transpose() * Y_;
+    Vector lambda(D + k);
+    lambda.head(D) = lambda_;
+    lambda.tail(k).setConstant(broad_variance_);
+    Index B(static_cast<size_t>(D)), cols(static_cast<size_t>(k));
+    std::iota(B.begin(), B.end(), 0);
+    std::iota(cols.begin(), cols.end(), D);
+    const Augmented aug = Augment(base_, G, cross, B, cols, lambda, s2n_);
+    if (!aug.ok) return -HUGE_VAL;
+    const double s = hyper_.output_scales()[joint - 1];
+    const double gain = LogEvidenceGain(aug, cols, lambda, s2n_, s * s, joint - 1);
+    return std::isfinite(gain) ? gain : -HUGE_VAL;
+  }
+
+ private:
+  void SetUp() {
+    ready_ = true;
+    gram_ = Phi_.transpose() * Phi_;
+    cross_ = Phi_.transpose() * Y_;
+    hyper_ = ProfileOnLog(base_map_, gram_, cross_, Y_, hyper_);
+    lambda_ = PriorVariance(*base_map_, hyper_);
+    s2n_ = hyper_.noise_variance();
+    Index B(static_cast<size_t>(Phi_.cols()));
+    std::iota(B.begin(), B.end(), 0);
+    base_ = FitBase(gram_, cross_, B, lambda_, s2n_);
+  }
+
+  std::shared_ptr<const FeatureMap> base_map_;
+  const Matrix& Phi_;
+  ConstMatrixRef Y_;
+  const Matrix& Xt_;
+  Hyperparameters hyper_;
+  double broad_variance_;
+  bool ready_ = false;
+  Matrix gram_, cross_;
+  Vector lambda_;
+  double s2n_ = 0.0;
+  BaseFit base_;
+};
+
 }  // namespace
+
+const char* ToString(DiagnosisStatus status) {
+  switch (status) {
+    case DiagnosisStatus::kOk:
+      return "ok";
+    case DiagnosisStatus::kNumericalFailure:
+      return "numerical_failure";
+  }
+  return "unknown";
+}
+
+bool DiagnosisOptions::IsValid(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = "DiagnosisOptions::" + message;
+    return false;
+  };
+  auto number = [](double v) {
+    std::ostringstream os;
+    os << v;
+    return os.str();
+  };
+  if (folds < 2) return fail("folds: expected >= 2, got " + std::to_string(folds));
+  if (!(min_log_evidence_gain >= 0.0) || !std::isfinite(min_log_evidence_gain)) {
+    return fail("min_log_evidence_gain: expected a finite value >= 0 nats, got " +
+                number(min_log_evidence_gain));
+  }
+  if (!(min_relative_rms_gain >= 0.0 && min_relative_rms_gain < 1.0)) {
+    return fail("min_relative_rms_gain: expected a fraction in [0, 1), got " +
+                number(min_relative_rms_gain));
+  }
+  if (max_suggestions < 0) {
+    return fail("max_suggestions: expected >= 0, got " + std::to_string(max_suggestions));
+  }
+  if (bins < 1) return fail("bins: expected >= 1, got " + std::to_string(bins));
+  const std::vector<std::string> known = EffectNames();
+  for (const std::string& name : candidates) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const auto& n : known) list += (list.empty() ? "" : ", ") + n;
+      return fail("candidates: unknown effect '" + name + "' (known: " + list + ")");
+    }
+  }
+  // A search range names a parameter of a registered effect and lies in its valid range.
+  for (const auto& [key, range] : search_ranges) {
+    const auto dot = key.find('.');
+    const std::string effect = dot == std::string::npos ? key : key.substr(0, dot);
+    const EffectParameter* parameter = nullptr;
+    std::vector<EffectParameter> info;
+    if (dot != std::string::npos && std::find(known.begin(), known.end(), effect) != known.end()) {
+      info = EffectParameterInfo(effect);
+      for (const EffectParameter& p : info) {
+        if (p.name == key.substr(dot + 1)) parameter = &p;
+      }
+    }
+    if (parameter == nullptr) {
+      return fail("search_ranges: '" + key + "' names no parameter of a registered effect " +
+                  "(expected \"effect.parameter\", e.g. \"cogging.period\")");
+    }
+    if (!(range.min <= range.max) || !parameter->valid.Contains(range.min) ||
+        !parameter->valid.Contains(range.max)) {
+      return fail("search_ranges: '" + key + "' expected min <= max, both " +
+                  parameter->ExpectedText() + ", got [" + number(range.min) + ", " +
+                  number(range.max) + "]");
+    }
+  }
+  if (nystrom_features < 1) {
+    return fail("nystrom_features: expected >= 1, got " + std::to_string(nystrom_features));
+  }
+  return true;
+}
 
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options) {
+  std::string invalid;
+  if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
   if (!model.fitted() || (!model.feature_map() && !model.kernel())) {
     throw std::invalid_argument("Diagnose: needs a fitted model");
   }
@@ -189,10 +328,6 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   if (base_map) {
     out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) + ")";
   } else {
-    if (options.nystrom_features < 1) {
-      throw std::invalid_argument("Diagnose: nystrom_features must be >= 1, got " +
-                                  std::to_string(options.nystrom_features));
-    }
     const Matrix Z = SelectInducingStates(*model.kernel(), X,
                                           std::min(options.nystrom_features, m / 2));
     base_map = std::make_shared<NystromFeatureMap>(*model.kernel(), Z);
@@ -237,11 +372,20 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
 
   // ---- candidates -----------------------------------------------------------------------------
   const auto& spec = model.spec();
-  auto model_has = [&](const std::string& name, int joint) {
-    if (spec.friction && (name == "viscous" || name == "coulomb" || name == "offset")) return true;
+  // Blocks the model contains (Effect::spanned_by): its feature map's, and in function space
+  // the friction block that "+fri" puts in its kernel.
+  std::set<std::string> model_blocks;
+  if (model.feature_map()) {
+    for (const FeatureBlock& b : model.feature_map()->blocks()) model_blocks.insert(b.name);
+  }
+  if (spec.friction) model_blocks.insert(FrictionFeatureMap::kBlockName);
+  auto model_has = [&](const Effect& effect, int joint) {
+    for (const std::string& block : effect.spanned_by()) {
+      if (model_blocks.count(block)) return true;
+    }
     for (const auto& e : spec.effects) {
-      if (e.name != name) continue;
-      if (e.joints.empty() || name == "offset") return true;
+      if (e.name != effect.name()) continue;
+      if (e.joints.empty() || effect.joint_independent()) return true;
       if (std::find(e.joints.begin(), e.joints.end(), joint) != e.joints.end()) return true;
     }
     return false;
@@ -250,8 +394,6 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   Matrix Xt(m, 3 * N + 1);
   Xt.leftCols(3 * N) = X.leftCols(3 * N);
   Xt.col(3 * N) = t.size() ? t : Vector::Zero(m);
-  const double t0 = t.size() ? t.minCoeff() : 0.0;
-  const double span = t.size() ? std::max(t.maxCoeff() - t0, 1e-9) : 1.0;
 
   Matrix Phi;
   base_map->EvaluateRows(X, &Phi);
@@ -261,8 +403,10 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     WeightSpaceGP refit(PriorVariance(*base_map, h), h.noise_variance(), N,
                         h.output_scales());
     if (refit.Fit(Phi, Y) != Status::kOk) {
-      throw std::runtime_error("Diagnose: the model could not be refitted on these data "
-                               "(posterior precision not positive definite)");
+      out.status = DiagnosisStatus::kNumericalFailure;
+      out.message = "the model could not be refitted on these data (posterior precision not "
+                    "positive definite)";
+      return out;
     }
     refit_residual = Y - Phi * refit.weights();
   }
@@ -271,7 +415,13 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   std::vector<Matrix> blocks;  // candidate columns, in order
   int next_col = base_map->dim();
   auto add_candidate = [&](const std::string& name, int joint, EffectParameters params) {
-    std::shared_ptr<const Effect> effect = MakeEffect(name, params);
+    std::shared_ptr<const Effect> effect;
+    try {
+      effect = MakeEffect(name, params);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("Diagnose: effect '" + name +
+                                  "' proposed parameters it does not accept: " + e.what());
+    }
     EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
     Matrix E;
     map.EvaluateRows(Xt, &E);
@@ -285,29 +435,32 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     blocks.push_back(std::move(E));
     candidates.push_back(std::move(c));
   };
-  for (const auto& name : options.candidates) {
+  EvidenceScorer scorer(base_map, Phi, Y, Xt, base_hyper, model.options().broad_prior_std);
+  const std::vector<std::string> names =
+      options.candidates.empty() ? EffectNames() : options.candidates;
+  for (const auto& name : names) {
+    const std::unique_ptr<Effect> prototype = MakeEffectPrototype(name);
+    // A time-dependent effect cannot be tried on data without time.
+    if (prototype->uses_time() && t.size() == 0) continue;
+    std::map<std::string, ParameterRange> search;
+    for (const EffectParameter& p : EffectParameterInfo(name)) {
+      const auto it = options.search_ranges.find(name + "." + p.name);
+      search[p.name] = it != options.search_ranges.end() ? it->second
+                       : p.search                        ? *p.search
+                                                         : p.valid;
+    }
     for (int j = 1; j <= N; ++j) {
-      if (model_has(name, j)) continue;
-      if (name == "drift") {
-        if (t.size() == 0) continue;
-        add_candidate(name, j, {{"t0", t0}, {"span", span}});
-      } else if (name == "cogging") {
-        // The period is estimated from what a refit of the model on these data cannot
-        // explain (the model's own residual here also carries its extrapolation error).
-        const double period = EstimateCoggingPeriod(X.col(j - 1), refit_residual.col(j - 1),
-                                                    options.min_cogging_period,
-                                                    options.max_cogging_period);
-        // The residual of a refit is distorted where the base absorbed part of the ripple, so
-        // the estimate is refined by evidence: candidates on a +-15% grid around it.
-        for (int g = -6; g <= 6; ++g) add_candidate(name, j, {{"period", period * (1.0 + 0.025 * g)}});
-      } else if (name == "stribeck") {
-        // Stribeck velocity on a grid relative to the joint's velocity spread.
-        const double qd_scale = std::max(1e-6, X.col(N + j - 1).cwiseAbs().maxCoeff());
-        for (double rel : {0.02, 0.05, 0.1, 0.2}) {
-          add_candidate(name, j, {{"velocity", rel * qd_scale}});
-        }
-      } else {
-        add_candidate(name, j, {});
+      if (model_has(*prototype, j)) continue;
+      // The effect proposes its parameters from what a refit of the model on these data
+      // cannot explain (the model's own residual also carries its extrapolation error).
+      ResidualContext context(j, X.col(j - 1), X.col(N + j - 1), X.col(2 * N + j - 1), t,
+                              refit_residual.col(j - 1));
+      context.search_ranges = search;
+      context.score = [&scorer, name, j](const EffectParameters& p) {
+        return scorer.Score(name, j, p);
+      };
+      for (EffectParameters& params : prototype->ProposeParameters(context)) {
+        add_candidate(name, j, std::move(params));
       }
     }
   }
@@ -338,17 +491,9 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
-  Hyperparameters hyper = base_hyper;
-  {
-    const int D = base_map->dim();
-    SufficientStatistics base_stats(D, N);
-    base_stats.gram = G_total.topLeftCorner(D, D);
-    base_stats.cross = cross_total.topRows(D);
-    base_stats.y_squared = Y.colwise().squaredNorm().transpose();
-    base_stats.count = m;
-    WeightSpaceEvidence evidence(base_map, std::move(base_stats));
-    hyper = ProfileNoiseAndScales(evidence, hyper);
-  }
+  const int D = base_map->dim();
+  const Hyperparameters hyper = ProfileOnLog(base_map, G_total.topLeftCorner(D, D),
+                                             cross_total.topRows(D), Y, base_hyper);
   out.noise_std = hyper.noise_variance() > 0 ? std::sqrt(hyper.noise_variance()) : 0.0;
   Vector lambda(next_col);
   lambda.head(base_map->dim()) = PriorVariance(*base_map, hyper);
@@ -371,8 +516,11 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     for (int fit = 0; fit < num_fits; ++fit) {
       base[fit] = FitBase(Gs[fit], crosses[fit], B, lambda, s2n);
       if (!base[fit].ok) {
-        throw std::runtime_error("Diagnose: the model's posterior could not be factorised on "
-                                 "these data (not positive definite)");
+        out.status = DiagnosisStatus::kNumericalFailure;
+        out.message = "the model's posterior could not be factorised on these data (not "
+                      "positive definite)";
+        out.suggestions.clear();
+        return out;
       }
     }
     // Held-out squared error per joint of the model refitted without the candidate.
@@ -390,16 +538,7 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
       const int j = c.joint - 1;
       const Augmented aug = Augment(base[0], Gs[0], crosses[0], B, c.cols, lambda, s2n);
       if (!aug.ok) continue;
-      // Gain in log evidence of joint j's torque when the columns are added (Schur
-      // complement Z of the base precision; docs/diagnosis.md):
-      //   0.5 u_j^T Z^{-1} u_j / (sigma^2 s_j^2) - 0.5 (log|Z| + log|Lambda_E| - k log sigma^2).
-      const Vector zu = aug.z.solve(Vector(aug.u.col(j)));
-      const double log_det_z = 2.0 * Matrix(aug.z.matrixL()).diagonal().array().log().sum();
-      double log_lambda_e = 0.0;
-      for (int col : c.cols) log_lambda_e += std::log(lambda[col]);
-      const double k = static_cast<double>(c.cols.size());
-      const double gain = 0.5 * aug.u.col(j).dot(zu) / (s2n * s2[j]) -
-                          0.5 * (log_det_z + log_lambda_e - k * std::log(s2n));
+      const double gain = LogEvidenceGain(aug, c.cols, lambda, s2n, s2[j], j);
       // Held-out error of joint j with the candidate, from the same fold fits.
       double sse_aug = 0.0;
       bool ok = true;
@@ -457,8 +596,14 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   return out;
 }
 
+std::string Describe(const Suggestion& suggestion) {
+  return MakeEffect(suggestion.effect, suggestion.params)->Describe();
+}
+
 std::string ToJson(const Diagnosis& d) {
   nlohmann::ordered_json j;
+  j["status"] = ToString(d.status);
+  if (!d.message.empty()) j["message"] = d.message;
   j["model"] = d.model;
   j["num_samples"] = d.num_samples;
   j["features"] = d.features;

@@ -40,6 +40,8 @@ EffectFeatureMap::EffectFeatureMap(int num_joints, std::shared_ptr<const Effect>
 }
 
 void EffectFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
+  if (x.size() != input_dim()) RequireSize("EffectFeatureMap::Evaluate x", x.size(), input_dim());
+  if (phi.size() != dim_) RequireSize("EffectFeatureMap::Evaluate phi", phi.size(), dim_);
   const int N = num_joints_;
   const double t = with_time_ ? x[3 * N] : 0.0;
   const int k = effect_->num_bases();
@@ -83,6 +85,9 @@ IgnoreTrailingInputs::IgnoreTrailingInputs(std::shared_ptr<const FeatureMap> map
 }
 
 void IgnoreTrailingInputs::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
+  if (x.size() != input_dim()) {
+    RequireSize("IgnoreTrailingInputs::Evaluate x", x.size(), input_dim());
+  }
   map_->Evaluate(x.head(map_->input_dim()), phi);
 }
 

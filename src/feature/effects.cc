@@ -1,10 +1,93 @@
 #include "structgp/feature/effects.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <set>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
+
+#include <Eigen/Cholesky>
+
+#include "structgp/feature/friction_feature_map.h"
 
 namespace structgp {
+
+// ---- parameter descriptions ------------------------------------------------------------------
+
+namespace {
+
+std::string Number(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+// Characters of the effect-list grammar (model/model_spec.h); not allowed in names.
+constexpr const char* kGrammarCharacters = "@:,;=+/ \t";
+
+bool ValidName(const std::string& name) {
+  return !name.empty() && name.find_first_of(kGrammarCharacters) == std::string::npos;
+}
+
+}  // namespace
+
+std::string EffectParameter::ExpectedText() const {
+  const bool lo = std::isfinite(valid.min), hi = std::isfinite(valid.max);
+  std::string text;
+  if (lo && hi) {
+    text = "in [" + Number(valid.min) + ", " + Number(valid.max) + "]";
+  } else if (lo) {
+    text = ">= " + Number(valid.min);
+  } else if (hi) {
+    text = "<= " + Number(valid.max);
+  }
+  if (integer) return text.empty() ? "an integer" : "an integer " + text;
+  if (text.empty()) return unit.empty() ? "a finite number" : "a finite number of " + unit;
+  return unit.empty() ? text : text + " " + unit;
+}
+
+void EffectParameter::Check(const std::string& effect, double value) const {
+  if (std::isfinite(value) && valid.Contains(value) && (!integer || value == std::floor(value))) {
+    return;
+  }
+  throw std::invalid_argument("effect '" + effect + "': parameter '" + name + "' expected " +
+                              ExpectedText() + ", got " + Number(value));
+}
+
+EffectParameters ResolveEffectParameters(const std::string& effect,
+                                         const std::vector<EffectParameter>& info,
+                                         const EffectParameters& given) {
+  for (const auto& [key, value] : given) {
+    bool known = false;
+    for (const EffectParameter& p : info) known = known || p.name == key;
+    if (!known) {
+      std::string list;
+      for (const EffectParameter& p : info) list += (list.empty() ? "" : ", ") + p.name;
+      throw std::invalid_argument("effect '" + effect + "' has no parameter '" + key +
+                                  "' (accepted: " + (list.empty() ? "none" : list) + ")");
+    }
+  }
+  EffectParameters out;
+  for (const EffectParameter& p : info) {
+    const auto it = given.find(p.name);
+    if (it == given.end()) {
+      if (p.required) {
+        throw std::invalid_argument("effect '" + effect + "': parameter '" + p.name +
+                                    "' is required (e.g. " + effect + "@1:" + p.name + "=" +
+                                    Number(p.default_value) + ")");
+      }
+      out[p.name] = p.default_value;
+    } else {
+      p.Check(effect, it->second);
+      out[p.name] = it->second;
+    }
+  }
+  return out;
+}
+
+// ---- Effect defaults -------------------------------------------------------------------------
 
 std::vector<std::string> Effect::basis_names() const {
   if (num_bases() == 1) return {name()};
@@ -13,72 +96,62 @@ std::vector<std::string> Effect::basis_names() const {
   return names;
 }
 
+std::vector<EffectParameters> Effect::ProposeParameters(const ResidualContext&) const {
+  for (const EffectParameter& p : parameter_info()) {
+    if (p.required) return {};
+  }
+  return {EffectParameters{}};
+}
+
+// ---- the built-in effects --------------------------------------------------------------------
+
 namespace {
 
 constexpr double kTwoPi = 6.283185307179586;
 
-// Reads parameters with defaults; rejects unknown keys and out-of-range values.
-class ParameterReader {
- public:
-  ParameterReader(std::string effect, const EffectParameters& params)
-      : effect_(std::move(effect)), params_(params) {}
+EffectParameter Param(std::string name, std::string unit, double default_value, double min,
+                      double max, std::string description) {
+  EffectParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.default_value = default_value;
+  p.valid = ParameterRange{min, max};
+  p.description = std::move(description);
+  return p;
+}
 
-  double Get(const std::string& key, double fallback, double lo, double hi) {
-    known_.push_back(key);
-    auto it = params_.find(key);
-    const double v = it == params_.end() ? fallback : it->second;
-    if (!std::isfinite(v) || v < lo || v > hi) {
-      std::ostringstream os;
-      os << "effect '" << effect_ << "': parameter " << key << " must be in [" << lo << ", "
-         << hi << "], got " << v;
-      throw std::invalid_argument(os.str());
-    }
-    return v;
-  }
-  double Require(const std::string& key, double lo, double hi) {
-    if (params_.find(key) == params_.end()) {
-      throw std::invalid_argument("effect '" + effect_ + "': parameter " + key +
-                                  " is required (e.g. " + effect_ + "@1:" + key + "=0.5)");
-    }
-    return Get(key, 0.0, lo, hi);
-  }
-  // Call after all Get/Require: throws on a key the effect does not know.
-  void Finish() const {
-    for (const auto& [key, value] : params_) {
-      bool ok = false;
-      for (const auto& k : known_) ok = ok || k == key;
-      if (!ok) {
-        std::string list;
-        for (const auto& k : known_) list += (list.empty() ? "" : ", ") + k;
-        throw std::invalid_argument("effect '" + effect_ + "' has no parameter '" + key +
-                                    "' (accepted: " + (list.empty() ? "none" : list) + ")");
-      }
-    }
-  }
+// The width of a tanh step in velocity (Coulomb, Stribeck, drift).
+EffectParameter WidthParam() {
+  return Param("width", "rad/s", 0.01, 1e-9, 1e9, "velocity scale of the tanh step");
+}
 
- private:
-  std::string effect_;
-  const EffectParameters& params_;
-  std::vector<std::string> known_;
-};
+std::vector<std::string> FrictionBlock() { return {FrictionFeatureMap::kBlockName}; }
 
 class ViscousEffect : public Effect {
  public:
+  static std::vector<EffectParameter> Parameters() { return {}; }
+  explicit ViscousEffect(const EffectParameters&) {}
   std::string name() const override { return "viscous"; }
   int num_bases() const override { return 1; }
   void Evaluate(double, double qd, double, double, double* out) const override { out[0] = qd; }
+  std::string Describe() const override { return "viscous friction"; }
+  std::vector<std::string> spanned_by() const override { return FrictionBlock(); }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<ViscousEffect>(*this); }
 };
 
 class CoulombEffect : public Effect {
  public:
-  explicit CoulombEffect(double width) : width_(width) {}
+  static std::vector<EffectParameter> Parameters() { return {WidthParam()}; }
+  explicit CoulombEffect(const EffectParameters& p) : width_(p.at("width")) {}
   std::string name() const override { return "coulomb"; }
   int num_bases() const override { return 1; }
   void Evaluate(double, double qd, double, double, double* out) const override {
     out[0] = std::tanh(qd / width_);
   }
-  std::map<std::string, double> parameters() const override { return {{"width", width_}}; }
+  std::vector<EffectParameter> parameter_info() const override { return Parameters(); }
+  EffectParameters parameters() const override { return {{"width", width_}}; }
+  std::string Describe() const override { return "Coulomb friction"; }
+  std::vector<std::string> spanned_by() const override { return FrictionBlock(); }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<CoulombEffect>(*this); }
 
  private:
@@ -87,15 +160,31 @@ class CoulombEffect : public Effect {
 
 class StribeckEffect : public Effect {
  public:
-  StribeckEffect(double velocity, double width) : velocity_(velocity), width_(width) {}
+  static std::vector<EffectParameter> Parameters() {
+    return {Param("velocity", "rad/s", 0.1, 1e-9, 1e9,
+                  "Stribeck velocity: the friction falls off as exp(-(qd / velocity)^2)"),
+            WidthParam()};
+  }
+  explicit StribeckEffect(const EffectParameters& p)
+      : velocity_(p.at("velocity")), width_(p.at("width")) {}
   std::string name() const override { return "stribeck"; }
   int num_bases() const override { return 1; }
   void Evaluate(double, double qd, double, double, double* out) const override {
     const double r = qd / velocity_;
     out[0] = std::exp(-r * r) * std::tanh(qd / width_);
   }
-  std::map<std::string, double> parameters() const override {
+  std::vector<EffectParameter> parameter_info() const override { return Parameters(); }
+  EffectParameters parameters() const override {
     return {{"velocity", velocity_}, {"width", width_}};
+  }
+  std::string Describe() const override { return "Stribeck friction"; }
+  /// The velocity on a grid relative to the joint's largest speed; the diagnosis chooses among
+  /// them by evidence.
+  std::vector<EffectParameters> ProposeParameters(const ResidualContext& c) const override {
+    const double qd_scale = c.qd.size() ? std::max(1e-6, c.qd.cwiseAbs().maxCoeff()) : 1e-6;
+    std::vector<EffectParameters> out;
+    for (double rel : {0.02, 0.05, 0.1, 0.2}) out.push_back({{"velocity", rel * qd_scale}});
+    return out;
   }
   std::unique_ptr<Effect> Clone() const override {
     return std::make_unique<StribeckEffect>(*this);
@@ -107,16 +196,65 @@ class StribeckEffect : public Effect {
 
 class OffsetEffect : public Effect {
  public:
+  static std::vector<EffectParameter> Parameters() { return {}; }
+  explicit OffsetEffect(const EffectParameters&) {}
   std::string name() const override { return "offset"; }
   int num_bases() const override { return 1; }
   bool joint_independent() const override { return true; }
   void Evaluate(double, double, double, double, double* out) const override { out[0] = 1.0; }
+  std::string Describe() const override { return "a torque offset"; }
+  std::vector<std::string> spanned_by() const override { return FrictionBlock(); }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<OffsetEffect>(*this); }
 };
 
+// Period of a sinusoid in q that best explains r (least squares on sin, cos, 1): a log grid of
+// 400 periods in [lo, hi], then a ternary search around the best one.
+double EstimateCoggingPeriod(const ConstVectorRef& q, const ConstVectorRef& r, double lo,
+                             double hi) {
+  const int n = static_cast<int>(q.size());
+  auto explained = [&](double period) {
+    Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int i = 0; i < n; ++i) {
+      const double a = kTwoPi * q[i] / period;
+      const Eigen::Vector3d f(std::sin(a), std::cos(a), 1.0);
+      G += f * f.transpose();
+      b += f * r[i];
+    }
+    G.diagonal().array() += 1e-9 * (G.trace() + 1.0);
+    return b.dot(G.ldlt().solve(b));
+  };
+  double best = lo, best_value = -1.0;
+  const int grid = 400;
+  for (int g = 0; g < grid; ++g) {
+    const double p = lo * std::pow(hi / lo, g / (grid - 1.0));
+    const double v = explained(p);
+    if (v > best_value) best_value = v, best = p;
+  }
+  // Refine around the best grid point.
+  const double step = std::pow(hi / lo, 1.0 / (grid - 1.0));
+  double a = best / step, c = best * step;
+  for (int it = 0; it < 40; ++it) {
+    const double m1 = a + (c - a) / 3, m2 = c - (c - a) / 3;
+    if (explained(m1) > explained(m2)) c = m2; else a = m1;
+  }
+  return 0.5 * (a + c);
+}
+
 class CoggingEffect : public Effect {
  public:
-  CoggingEffect(double period, int harmonics) : period_(period), harmonics_(harmonics) {}
+  static std::vector<EffectParameter> Parameters() {
+    EffectParameter period = Param("period", "rad", 0.5, 1e-6, 1e6,
+                                   "period of the ripple in the joint position");
+    period.required = true;
+    period.search = ParameterRange{0.02, 3.0};
+    EffectParameter harmonics =
+        Param("harmonics", "", 1.0, 1.0, 20.0, "number of harmonics of the ripple");
+    harmonics.integer = true;
+    return {period, harmonics};
+  }
+  explicit CoggingEffect(const EffectParameters& p)
+      : period_(p.at("period")), harmonics_(static_cast<int>(p.at("harmonics"))) {}
   std::string name() const override { return "cogging"; }
   int num_bases() const override { return 2 * harmonics_; }
   std::vector<std::string> basis_names() const override {
@@ -135,8 +273,26 @@ class CoggingEffect : public Effect {
       out[2 * (k - 1) + 1] = std::cos(a);
     }
   }
-  std::map<std::string, double> parameters() const override {
+  std::vector<EffectParameter> parameter_info() const override { return Parameters(); }
+  EffectParameters parameters() const override {
     return {{"period", period_}, {"harmonics", static_cast<double>(harmonics_)}};
+  }
+  std::string Describe() const override {
+    char text[64];
+    std::snprintf(text, sizeof(text), "cogging (period %.3g rad)", period_);
+    return text;
+  }
+  /// The period whose sinusoid in q best explains the residual (searched in
+  /// context.SearchRange("period")). The residual of a refit is distorted where the model
+  /// absorbed part of the ripple, so the estimate comes with alternatives on a +-15% grid
+  /// around it, among which the diagnosis chooses by evidence.
+  std::vector<EffectParameters> ProposeParameters(const ResidualContext& c) const override {
+    if (c.q.size() == 0 || c.residual.size() != c.q.size()) return {};
+    const ParameterRange range = c.SearchRange("period");
+    const double period = EstimateCoggingPeriod(c.q, c.residual, range.min, range.max);
+    std::vector<EffectParameters> out;
+    for (int g = -6; g <= 6; ++g) out.push_back({{"period", period * (1.0 + 0.025 * g)}});
+    return out;
   }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<CoggingEffect>(*this); }
 
@@ -147,15 +303,24 @@ class CoggingEffect : public Effect {
 
 class SpringEffect : public Effect {
  public:
+  static std::vector<EffectParameter> Parameters() { return {}; }
+  explicit SpringEffect(const EffectParameters&) {}
   std::string name() const override { return "spring"; }
   int num_bases() const override { return 1; }
   void Evaluate(double q, double, double, double, double* out) const override { out[0] = q; }
+  std::string Describe() const override { return "a spring"; }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<SpringEffect>(*this); }
 };
 
 class DriftEffect : public Effect {
  public:
-  DriftEffect(double t0, double span, double width) : t0_(t0), span_(span), width_(width) {}
+  static std::vector<EffectParameter> Parameters() {
+    return {Param("t0", "s", 0.0, -1e12, 1e12, "time at which the drift is zero"),
+            Param("span", "s", 1.0, 1e-9, 1e12, "time over which the drift grows by one unit"),
+            WidthParam()};
+  }
+  explicit DriftEffect(const EffectParameters& p)
+      : t0_(p.at("t0")), span_(p.at("span")), width_(p.at("width")) {}
   std::string name() const override { return "drift"; }
   int num_bases() const override { return 3; }
   std::vector<std::string> basis_names() const override { return {"coulomb", "viscous", "offset"}; }
@@ -166,8 +331,17 @@ class DriftEffect : public Effect {
     out[1] = s * qd;
     out[2] = s;
   }
-  std::map<std::string, double> parameters() const override {
+  std::vector<EffectParameter> parameter_info() const override { return Parameters(); }
+  EffectParameters parameters() const override {
     return {{"t0", t0_}, {"span", span_}, {"width", width_}};
+  }
+  std::string Describe() const override { return "drifting friction"; }
+  /// t0 and span of the log (nothing without a time column).
+  std::vector<EffectParameters> ProposeParameters(const ResidualContext& c) const override {
+    if (c.t.size() == 0) return {};
+    const double t0 = c.t.minCoeff();
+    const double span = std::max(c.t.maxCoeff() - t0, 1e-9);
+    return {{{"t0", t0}, {"span", span}}};
   }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<DriftEffect>(*this); }
 
@@ -175,93 +349,118 @@ class DriftEffect : public Effect {
   double t0_, span_, width_;
 };
 
-using Factory = std::function<std::unique_ptr<Effect>(const EffectParameters&)>;
+struct Entry {
+  std::string name;
+  std::vector<EffectParameter> parameters;
+  EffectFactory factory;
+};
 
-std::vector<std::pair<std::string, Factory>>& Registry() {
-  static std::vector<std::pair<std::string, Factory>> registry = {
-      {"viscous",
-       [](const EffectParameters& p) {
-         ParameterReader("viscous", p).Finish();
-         return std::unique_ptr<Effect>(new ViscousEffect());
-       }},
-      {"coulomb",
-       [](const EffectParameters& p) {
-         ParameterReader r("coulomb", p);
-         const double width = r.Get("width", 0.01, 1e-9, 1e9);
-         r.Finish();
-         return std::unique_ptr<Effect>(new CoulombEffect(width));
-       }},
-      {"stribeck",
-       [](const EffectParameters& p) {
-         ParameterReader r("stribeck", p);
-         const double velocity = r.Get("velocity", 0.1, 1e-9, 1e9);
-         const double width = r.Get("width", 0.01, 1e-9, 1e9);
-         r.Finish();
-         return std::unique_ptr<Effect>(new StribeckEffect(velocity, width));
-       }},
-      {"offset",
-       [](const EffectParameters& p) {
-         ParameterReader("offset", p).Finish();
-         return std::unique_ptr<Effect>(new OffsetEffect());
-       }},
-      {"cogging",
-       [](const EffectParameters& p) {
-         ParameterReader r("cogging", p);
-         const double period = r.Require("period", 1e-6, 1e6);
-         const double harmonics = r.Get("harmonics", 1.0, 1.0, 20.0);
-         r.Finish();
-         if (harmonics != std::floor(harmonics)) {
-           throw std::invalid_argument("effect 'cogging': harmonics must be an integer, got " +
-                                       std::to_string(harmonics));
-         }
-         return std::unique_ptr<Effect>(new CoggingEffect(period, static_cast<int>(harmonics)));
-       }},
-      {"spring",
-       [](const EffectParameters& p) {
-         ParameterReader("spring", p).Finish();
-         return std::unique_ptr<Effect>(new SpringEffect());
-       }},
-      {"drift",
-       [](const EffectParameters& p) {
-         ParameterReader r("drift", p);
-         const double t0 = r.Get("t0", 0.0, -1e12, 1e12);
-         const double span = r.Get("span", 1.0, 1e-9, 1e12);
-         const double width = r.Get("width", 0.01, 1e-9, 1e9);
-         r.Finish();
-         return std::unique_ptr<Effect>(new DriftEffect(t0, span, width));
-       }},
+template <class E>
+Entry BuiltIn(const std::string& name) {
+  return Entry{name, E::Parameters(),
+               [](const EffectParameters& p) { return std::unique_ptr<Effect>(new E(p)); }};
+}
+
+// The one list of built-in effects, in the order of the table in effects.h.
+std::vector<Entry>& Registry() {
+  static std::vector<Entry> registry = {
+      BuiltIn<ViscousEffect>("viscous"), BuiltIn<CoulombEffect>("coulomb"),
+      BuiltIn<StribeckEffect>("stribeck"), BuiltIn<OffsetEffect>("offset"),
+      BuiltIn<CoggingEffect>("cogging"), BuiltIn<SpringEffect>("spring"),
+      BuiltIn<DriftEffect>("drift"),
   };
   return registry;
 }
 
-}  // namespace
-
-std::unique_ptr<Effect> MakeEffect(const std::string& name, const EffectParameters& params) {
-  for (const auto& [key, factory] : Registry()) {
-    if (key == name) return factory(params);
+const Entry& Find(const std::string& name) {
+  for (const Entry& e : Registry()) {
+    if (e.name == name) return e;
   }
   std::string list;
   for (const auto& n : EffectNames()) list += (list.empty() ? "" : ", ") + n;
   throw std::invalid_argument("unknown effect '" + name + "' (known: " + list + ")");
 }
 
+EffectParameters Defaults(const std::vector<EffectParameter>& info) {
+  EffectParameters p;
+  for (const EffectParameter& d : info) p[d.name] = d.default_value;
+  return p;
+}
+
+}  // namespace
+
+std::unique_ptr<Effect> MakeEffect(const std::string& name, const EffectParameters& params) {
+  const Entry& e = Find(name);
+  return e.factory(ResolveEffectParameters(name, e.parameters, params));
+}
+
+std::unique_ptr<Effect> MakeEffectPrototype(const std::string& name) {
+  const Entry& e = Find(name);
+  return e.factory(Defaults(e.parameters));
+}
+
+std::vector<EffectParameter> EffectParameterInfo(const std::string& name) {
+  return Find(name).parameters;
+}
+
 std::vector<std::string> EffectNames() {
   std::vector<std::string> names;
-  for (const auto& entry : Registry()) names.push_back(entry.first);
+  for (const Entry& entry : Registry()) names.push_back(entry.name);
   return names;
 }
 
-void RegisterEffect(const std::string& name, Factory factory) {
-  if (name.empty() || name.find_first_of("@:,=+ ") != std::string::npos) {
-    throw std::invalid_argument("RegisterEffect: '" + name +
-                                "' is not a valid effect name (no spaces or @ : , = +)");
+void RegisterEffect(const std::string& name, std::vector<EffectParameter> parameters,
+                    EffectFactory factory) {
+  const std::string what = "RegisterEffect('" + name + "'): ";
+  if (!ValidName(name)) {
+    throw std::invalid_argument(what + "not a valid effect name (expected a non-empty name "
+                                       "without spaces or any of @ : , ; = + /)");
   }
-  for (const auto& entry : Registry()) {
-    if (entry.first == name) {
-      throw std::invalid_argument("RegisterEffect: effect '" + name + "' already exists");
+  for (const Entry& entry : Registry()) {
+    if (entry.name == name) throw std::invalid_argument(what + "the effect already exists");
+  }
+  if (!factory) throw std::invalid_argument(what + "null factory");
+  std::set<std::string> names;
+  for (const EffectParameter& p : parameters) {
+    if (!ValidName(p.name)) {
+      throw std::invalid_argument(what + "parameter name '" + p.name +
+                                  "' is not valid (non-empty, no spaces or @ : , ; = + /)");
     }
+    if (!names.insert(p.name).second) {
+      throw std::invalid_argument(what + "parameter '" + p.name + "' declared twice");
+    }
+    if (!(p.valid.min <= p.valid.max)) {
+      throw std::invalid_argument(what + "parameter '" + p.name + "': valid range [" +
+                                  Number(p.valid.min) + ", " + Number(p.valid.max) +
+                                  "] is empty");
+    }
+    if (p.search && !(p.search->min <= p.search->max)) {
+      throw std::invalid_argument(what + "parameter '" + p.name + "': search range is empty");
+    }
+    // The default (a required parameter's example) must itself be valid: the prototype and
+    // the "is required" message use it.
+    p.Check(name, p.default_value);
   }
-  Registry().emplace_back(name, std::move(factory));
+  const std::unique_ptr<Effect> prototype = factory(Defaults(parameters));
+  if (!prototype) throw std::invalid_argument(what + "the factory returned null");
+  if (prototype->name() != name) {
+    throw std::invalid_argument(what + "the effect calls itself '" + prototype->name() + "'");
+  }
+  std::vector<std::string> declared, described, reported;
+  for (const EffectParameter& p : parameters) declared.push_back(p.name);
+  for (const EffectParameter& p : prototype->parameter_info()) described.push_back(p.name);
+  for (const auto& kv : prototype->parameters()) reported.push_back(kv.first);
+  if (described != declared) {
+    throw std::invalid_argument(what + "the effect's parameter_info() does not list the "
+                                       "registered parameters, in order");
+  }
+  std::sort(declared.begin(), declared.end());
+  if (reported != declared) {
+    throw std::invalid_argument(what + "the effect's parameters() does not report exactly the "
+                                       "registered parameters (its suggestions would not parse "
+                                       "back)");
+  }
+  Registry().push_back(Entry{name, std::move(parameters), std::move(factory)});
 }
 
 }  // namespace structgp

@@ -18,7 +18,7 @@ FrictionFeatureMap::FrictionFeatureMap(int num_joints, double sigma_f)
     : FrictionFeatureMap(num_joints, FrictionOptions{sigma_f, true}) {}
 
 std::vector<FeatureBlock> FrictionFeatureMap::blocks() const {
-  return {FeatureBlock{"friction", 0, dim_}};
+  return {FeatureBlock{kBlockName, 0, dim_}};
 }
 
 void FrictionFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {

@@ -139,6 +139,20 @@ class ProgressPrinter final : public ceres::IterationCallback {
   double n_;
 };
 
+// MaximumLikelihoodOptions::iteration_callback as a Ceres callback (SOLVER_ABORT on false).
+class UserCallback final : public ceres::IterationCallback {
+ public:
+  UserCallback(const std::function<bool(int, double)>* callback, double num_observations)
+      : callback_(callback), n_(num_observations) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    return (*callback_)(s.iteration, s.cost * n_) ? ceres::SOLVER_CONTINUE : ceres::SOLVER_ABORT;
+  }
+
+ private:
+  const std::function<bool(int, double)>* callback_;
+  double n_;
+};
+
 // LBFGS on the objective from *x; *x receives the best point evaluated. The caller has checked
 // that *x lies inside the bounds.
 template <typename Objective>
@@ -194,6 +208,8 @@ MaximumLikelihoodSummary Minimize(const Objective& objective,
   solver_options.logging_type = ceres::SILENT;
   ProgressPrinter printer(n);
   if (options.verbose) solver_options.callbacks.push_back(&printer);
+  UserCallback user(&options.iteration_callback, n);
+  if (options.iteration_callback) solver_options.callbacks.push_back(&user);
 
   auto* function = new CeresFunction<Objective>(&objective);
   ceres::GradientProblem problem(function);  // owns function
@@ -207,6 +223,10 @@ MaximumLikelihoodSummary Minimize(const Objective& objective,
       break;
     case ceres::NO_CONVERGENCE:
       summary.termination = MaximumLikelihoodTermination::kMaxIterations;
+      break;
+    case ceres::USER_SUCCESS:
+    case ceres::USER_FAILURE:
+      summary.termination = MaximumLikelihoodTermination::kUserAbort;
       break;
     default:
       summary.termination = MaximumLikelihoodTermination::kLineSearchFailed;
@@ -247,6 +267,8 @@ const char* ToString(MaximumLikelihoodTermination termination) {
       return "initial_point_failed";
     case MaximumLikelihoodTermination::kNoFreeParameters:
       return "no_free_parameters";
+    case MaximumLikelihoodTermination::kUserAbort:
+      return "user_abort";
   }
   return "unknown";
 }

@@ -21,7 +21,6 @@ std::vector<int> EvenlySpacedRows(Eigen::Index m, Eigen::Index count);
 /// The rows of X with the given indices, in that order. Throws std::invalid_argument on an
 /// index out of range.
 Matrix SelectRows(const ConstMatrixRef& X, const std::vector<int>& rows);
-Vector SelectRows(const ConstVectorRef& x, const std::vector<int>& rows);
 
 }  // namespace structgp
 

@@ -17,22 +17,25 @@
 /// min_relative_rms_gain. Suggestions are chosen greedily (after the best is added, the others
 /// are scored again), so two names for one effect are not both suggested. Effects that the
 /// model already spans (a sinusoidal spring or a payload under pol) gain nothing and are not
-/// suggested. Parameters are estimated where needed (cogging period from the residuals,
-/// Stribeck velocity by evidence, drift time origin and span from the data).
+/// suggested. Each effect proposes its own parameters from the residual of a refit
+/// (Effect::ProposeParameters: cogging period, Stribeck velocity, drift time origin and span),
+/// so a user's registered effect gets parameter estimation too; effects the model contains
+/// (same name on the joint, or a block of Effect::spanned_by) are not tried.
 
 #include <map>
 #include <string>
 #include <vector>
 
 #include "structgp/core/types.h"
+#include "structgp/feature/effect_parameter.h"
 #include "structgp/model/robot_model.h"
 
 namespace structgp {
 
 struct DiagnosisOptions {
-  /// Candidate effect names (default: every built-in effect).
-  std::vector<std::string> candidates = {"viscous", "coulomb", "stribeck", "offset",
-                                         "cogging", "spring",  "drift"};
+  /// Candidate effect names; empty (the default): every registered effect, in EffectNames()
+  /// order (the built-in ones, then those added with RegisterEffect).
+  std::vector<std::string> candidates;
   /// Contiguous folds of the blocked cross-validation.
   int folds = 5;
   /// Minimum gain in log evidence of the joint's torque, nats (about e^10 : 1 odds).
@@ -43,13 +46,18 @@ struct DiagnosisOptions {
   int max_suggestions = 6;
   /// Quantile bins for "where the error concentrates".
   int bins = 10;
-  /// Search range of the cogging period, rad.
-  double min_cogging_period = 0.02;
-  double max_cogging_period = 3.0;
+  /// Where ProposeParameters searches a parameter, by "effect.parameter", overriding the
+  /// parameter's own search range (EffectParameter::search; cogging's period: [0.02, 3] rad),
+  /// e.g. {{"cogging.period", {0.05, 1.0}}}.
+  std::map<std::string, ParameterRange> search_ranges;
   /// Models in function space (rbf, rbfs, pol beyond its explicit map): the candidates are
   /// scored against this many Nystrom features of the model's kernel (at most half the rows),
   /// inducing states chosen among the rows by greedy residual variance.
   int nystrom_features = 512;
+
+  /// True when the options are usable; otherwise false with the reason in *error (may be
+  /// null).
+  bool IsValid(std::string* error) const;
 };
 
 /// A variable along which a joint's residual concentrates.
@@ -80,11 +88,32 @@ struct Suggestion {
   /// contiguous blocks visit different states, since each block is then an extrapolation.)
   double residual_rms_before = 0;
   double residual_rms_after = 0;
-  std::map<std::string, double> params;  ///< the effect's parameters as estimated
-  std::string spec;     ///< the text to add to --effects, e.g. "cogging@3:period=0.3"
+  std::map<std::string, double> params;  ///< every parameter of the effect (as estimated)
+  /// The text to add to --effects, e.g. "cogging@3:period=0.3": ParseEffectList(spec) gives
+  /// back this effect on this joint, with these params.
+  std::string spec;
 };
 
+/// The suggested effect in one phrase for a report: MakeEffect(effect, params)->Describe()
+/// ("Coulomb friction", "cogging (period 0.304 rad)").
+std::string Describe(const Suggestion& suggestion);
+
+/// How a diagnosis ended.
+enum class DiagnosisStatus {
+  kOk,
+  /// The model could not be refitted or factorised on these data (not positive definite):
+  /// no suggestion is made; what was found before the failure is kept. Diagnosis::message
+  /// says which step failed.
+  kNumericalFailure,
+};
+
+/// "ok", "numerical_failure".
+const char* ToString(DiagnosisStatus status);
+
 struct Diagnosis {
+  DiagnosisStatus status = DiagnosisStatus::kOk;
+  /// Empty when status is kOk, else what failed.
+  std::string message;
   std::vector<JointFinding> joints;
   std::vector<Suggestion> suggestions;  ///< highest score first
   int num_samples = 0;
@@ -99,8 +128,10 @@ struct Diagnosis {
 
 /// Diagnoses a fitted model on data X (m x model.input_dim()),
 /// Y (m x N) and times t (size m, or empty when the data have none: drift is then not tried).
-/// Rows must be in time order (the folds are contiguous). Throws std::invalid_argument on bad
-/// sizes, NaN/Inf, too few rows for the folds, or a model that is not fitted.
+/// Rows must be in time order (the folds are contiguous). Throws std::invalid_argument on
+/// invalid options (an unknown candidate name, a search range naming no parameter of a
+/// registered effect, ...), bad sizes, NaN/Inf, too few rows for the folds, or a model that is
+/// not fitted; numerical trouble is Diagnosis::status.
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options = {});
 

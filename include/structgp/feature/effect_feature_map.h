@@ -29,6 +29,8 @@ class EffectFeatureMap : public FeatureMap {
 
   int input_dim() const override { return 3 * num_joints_ + (with_time_ ? 1 : 0); }
   int dim() const override { return dim_; }
+  /// Allocation-free and thread-safe (as Effect::Evaluate); throws std::invalid_argument on a
+  /// size mismatch.
   void Evaluate(const ConstVectorRef& x, VectorRef phi) const override;
   std::vector<FeatureBlock> blocks() const override;
 

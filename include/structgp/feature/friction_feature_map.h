@@ -48,6 +48,9 @@ struct FrictionIndices {
 /// Immutable after construction; Evaluate is allocation-free and thread-safe.
 class FrictionFeatureMap : public FeatureMap {
  public:
+  /// Name of the one block (effects spanned by it name it in Effect::spanned_by).
+  static constexpr const char* kBlockName = "friction";
+
   /// Throws std::invalid_argument unless num_joints >= 1 and sigma_f is finite and > 0.
   FrictionFeatureMap(int num_joints, const FrictionOptions& options);
   /// Shorthand for FrictionOptions{sigma_f, true}.

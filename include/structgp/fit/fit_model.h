@@ -62,14 +62,27 @@ struct FitProgress {
 /// Returned by FitOptions::callback.
 enum class FitCallbackReturn { kContinue, kAbort };
 
+/// Where the output scales s_j (one per joint: prior and noise of joint j both scale with
+/// s_j^2) come from.
+enum class OutputScaling {
+  /// Each joint's torque RMS, then (evidence) profiled with the noise level.
+  kPerJointRms,
+  /// 1 for every joint, and kept: torques already on one scale share one noise level (the
+  /// paper's setting). The evidence then fits the noise by LBFGS with the other groups; no
+  /// profile is run.
+  kUnit,
+};
+
 struct FitOptions {
   HyperparameterMethod method = HyperparameterMethod::kEvidence;
+  OutputScaling output_scaling = OutputScaling::kPerJointRms;
 
   /// kEvidence: the LBFGS settings, which groups are free and their bounds. The defaults fit
   /// shape, block scales and noise (output scales profiled first, then held).
   MaximumLikelihoodOptions evidence;
-  /// kEvidence on feature-map models: profile the noise level and the output scales by
-  /// evidence (a cheap one-dimensional search per output) before LBFGS.
+  /// kEvidence on feature-map models with OutputScaling::kPerJointRms: profile the noise
+  /// level and the output scales by evidence (a cheap one-dimensional search per output)
+  /// before LBFGS.
   bool profile_noise_and_scales = true;
   /// kEvidence on kernel models: the kernel's hyper-parameters are fitted on at most this many
   /// rows (core/row_subset.h: evenly spaced); the model then uses all rows (up to

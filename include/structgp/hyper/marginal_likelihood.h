@@ -21,6 +21,7 @@
 /// backs off to a shorter step. Such evaluations are counted in the summary; they never
 /// produce a NaN. The result is the best point evaluated.
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -88,6 +89,9 @@ struct MaximumLikelihoodOptions {
 
   /// Progress to stderr: one line per iteration and a final report.
   bool verbose = false;
+  /// Called after every LBFGS iteration with the iteration number and -log p(Y) (nats) at
+  /// the current point; returning false stops the search (kUserAbort). May be empty.
+  std::function<bool(int iteration, double negative_log_likelihood)> iteration_callback;
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
   /// null).
@@ -112,10 +116,13 @@ enum class MaximumLikelihoodTermination {
   kInitialPointFailed,
   /// No hyper-parameter is free; the evidence was evaluated at the start only.
   kNoFreeParameters,
+  /// MaximumLikelihoodOptions::iteration_callback asked to stop; the result is the best point
+  /// evaluated.
+  kUserAbort,
 };
 
 /// "converged", "max_iterations", "line_search_failed", "initial_point_failed",
-/// "no_free_parameters".
+/// "no_free_parameters", "user_abort".
 const char* ToString(MaximumLikelihoodTermination termination);
 
 /// What a fit did.

@@ -61,14 +61,13 @@
 
 #include <Eigen/Core>
 
-#include "bench_program.h"
+#include "experiment_program.h"
 #include "kernel_mean.h"
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/friction_feature_map.h"
+#include "structgp/fit/fit_model.h"
 #include "structgp/feature/pol_feature_map.h"
-#include "structgp/hyper/cross_validation.h"
-#include "structgp/hyper/evidence.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/io/atomic_file.h"
 #include "structgp/kernel/feature_kernel.h"
@@ -76,7 +75,6 @@
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 #include "structgp/model/robot_model.h"
-#include "structgp/model/sufficient_statistics.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/friction.h"
 #include "structgp/sim/robot.h"
@@ -121,109 +119,8 @@ struct Flags {
   std::string out_dir = "docs";
 };
 
-const char kUsage[] =
-    "usage: paper_fig12 [flags]\n"
-    "  --quick               N = 1..2, 3 robots (a CI-size run)\n"
-    "  --n-min=K --n-max=K   range of joint counts (default 1..6)\n"
-    "  --robots=K            random robots per N (default 10)\n"
-    "  --seed=S              base seed of robots, states, friction and noise (default 1)\n"
-    "  --train=M --test=M    training / validation states per robot (500 / 15000)\n"
-    "  --noise=S             noise std of the normalised training torques (0.05)\n"
-    "  --q-range=R --qd-range=R --qdd-range=R   state box (pi rad, 2 rad/s, 4 rad/s^2)\n"
-    "  --friction-min=U --friction-max=U        relative friction size (0.1 .. 0.3)\n"
-    "  --threads=T           robots fitted in parallel (2)\n"
-    "  --budget-cpu-seconds=S  start a new N only if it is expected to end within S seconds\n"
-    "                        of CPU time of this process (1200: 10 minutes on 2 cores)\n"
-    "  --ml-iterations=K     LBFGS iterations per ML-II fit (60)\n"
-    "  --fit-seconds=S       wall-clock limit per ML-II fit (120)\n"
-    "  --no-cv               skip the cross-validated variants\n"
-    "  --models=a,b,...      run only these of pol, pol+fri, rbf, rbf+fri, rbfs, rbfs+fri,\n"
-    "                        motor, motor+fri (default all)\n"
-    "  --out-dir=DIR         where the .md, .csv and .svg go (docs)\n"
-    "  --check               exit 3 unless pol beats rbf at N = 2 without friction\n";
-
 bool StartsWith(const std::string& s, const std::string& prefix) {
   return s.compare(0, prefix.size(), prefix) == 0;
-}
-
-// Parses --name=value flags. Throws std::invalid_argument naming the bad flag.
-Flags ParseFlags(int argc, char** argv) {
-  Flags f;
-  bool explicit_n = false, explicit_robots = false;
-  ForEachFlag(argc, argv, [&](const Flag& flag) {
-    const std::string& name = flag.name();
-    if (name == "--quick") {
-      f.quick = true;
-    } else if (name == "--check") {
-      f.check = true;
-    } else if (name == "--no-cv") {
-      f.cv = false;
-    } else if (name == "--n-min") {
-      f.n_min = flag.Int();
-      explicit_n = true;
-    } else if (name == "--n-max") {
-      f.n_max = flag.Int();
-      explicit_n = true;
-    } else if (name == "--robots") {
-      f.robots = flag.Int();
-      explicit_robots = true;
-    } else if (name == "--seed") {
-      f.seed = flag.Uint64();
-    } else if (name == "--train") {
-      f.train = flag.Int();
-    } else if (name == "--test") {
-      f.test = flag.Int();
-    } else if (name == "--noise") {
-      f.noise = flag.Number();
-    } else if (name == "--q-range") {
-      f.q_range = flag.Number();
-    } else if (name == "--qd-range") {
-      f.qd_range = flag.Number();
-    } else if (name == "--qdd-range") {
-      f.qdd_range = flag.Number();
-    } else if (name == "--friction-min") {
-      f.friction_min = flag.Number();
-    } else if (name == "--friction-max") {
-      f.friction_max = flag.Number();
-    } else if (name == "--threads") {
-      f.threads = flag.Int();
-    } else if (name == "--budget-cpu-seconds") {
-      f.budget_cpu_seconds = flag.Number();
-    } else if (name == "--ml-iterations") {
-      f.ml_iterations = flag.Int();
-    } else if (name == "--fit-seconds") {
-      f.fit_seconds = flag.Number();
-    } else if (name == "--models") {
-      f.models = flag.List();
-    } else if (name == "--out-dir") {
-      f.out_dir = flag.Value();
-    } else {
-      return false;
-    }
-    return true;
-  });
-  if (f.quick) {
-    if (!explicit_n) {
-      f.n_min = 1;
-      f.n_max = 2;
-    }
-    if (!explicit_robots) f.robots = 3;
-  }
-  if (f.n_min < 1 || f.n_max > 7 || f.n_min > f.n_max) {
-    throw std::invalid_argument("expected 1 <= --n-min <= --n-max <= 7, got " +
-                                std::to_string(f.n_min) + ".." + std::to_string(f.n_max));
-  }
-  if (f.robots < 1 || f.train < kNumFolds || f.test < 1 || f.threads < 1 ||
-      f.ml_iterations < 1) {
-    throw std::invalid_argument("--robots, --test, --threads, --ml-iterations must be >= 1 and "
-                                "--train >= 5");
-  }
-  if (!(f.noise >= 0.0) || !(f.q_range > 0.0) || !(f.qd_range > 0.0) || !(f.qdd_range > 0.0) ||
-      !(f.friction_min >= 0.0) || !(f.friction_max >= f.friction_min)) {
-    throw std::invalid_argument("expected noise >= 0, positive ranges and "
-                                "0 <= friction-min <= friction-max");
-  }
-  return f;
 }
 
 // ---- models -----------------------------------------------------------------------------
@@ -246,6 +143,70 @@ const std::vector<ModelKind>& Models() {
       {Base::kRbfs, false, "rbfs"},   {Base::kRbfs, true, "rbfs+fri"},
       {Base::kMotor, false, "motor"}, {Base::kMotor, true, "motor+fri"}};
   return models;
+}
+
+// The flags of the program, bound to *f.
+void AddFlags(CLI::App* app, Flags* f) {
+  app->add_flag("--quick", f->quick, "N = 1..2, 3 robots (a CI-size run)");
+  AddFlag(app, "--n-min", &f->n_min, "smallest joint count");
+  AddFlag(app, "--n-max", &f->n_max, "largest joint count");
+  AddFlag(app, "--robots", &f->robots, "random robots per N");
+  AddFlag(app, "--seed", &f->seed, "base seed of robots, states, friction and noise");
+  AddFlag(app, "--train", &f->train, "training states per robot");
+  AddFlag(app, "--test", &f->test, "validation states per robot");
+  AddFlag(app, "--noise", &f->noise, "noise std of the normalised training torques");
+  AddFlag(app, "--q-range", &f->q_range, "state box: |q| <= R rad");
+  AddFlag(app, "--qd-range", &f->qd_range, "state box: |qd| <= R rad/s");
+  AddFlag(app, "--qdd-range", &f->qdd_range, "state box: |qdd| <= R rad/s^2");
+  AddFlag(app, "--friction-min", &f->friction_min, "relative friction size, lower end");
+  AddFlag(app, "--friction-max", &f->friction_max, "relative friction size, upper end");
+  AddFlag(app, "--threads", &f->threads, "robots fitted in parallel");
+  AddFlag(app, "--budget-cpu-seconds", &f->budget_cpu_seconds,
+          "start a new N only if it is expected to end within this CPU time of the process "
+          "(1200: 10 minutes on 2 cores)");
+  AddFlag(app, "--ml-iterations", &f->ml_iterations, "LBFGS iterations per ML-II fit");
+  AddFlag(app, "--fit-seconds", &f->fit_seconds, "wall-clock limit per ML-II fit");
+  app->add_flag_callback("--no-cv", [f]() { f->cv = false; }, "skip the cross-validated variants");
+  AddListFlag(app, "--models", &f->models,
+              "run only these of pol, pol+fri, rbf, rbf+fri, rbfs, rbfs+fri, motor, motor+fri "
+              "(default all)");
+  AddFlag(app, "--out-dir", &f->out_dir, "where the .md, .csv and .svg go");
+  app->add_flag("--check", f->check, "exit 3 unless pol beats rbf at N = 2 without friction");
+}
+
+// Applies --quick (unless --n-min, --n-max or --robots say otherwise) and checks the flags
+// together. Throws std::invalid_argument naming the bad flag.
+void FinishFlags(const CLI::App& app, Flags* f) {
+  if (f->quick) {
+    if (app.count("--n-min") == 0 && app.count("--n-max") == 0) {
+      f->n_min = 1;
+      f->n_max = 2;
+    }
+    if (app.count("--robots") == 0) f->robots = 3;
+  }
+  if (f->n_min < 1 || f->n_max > 7 || f->n_min > f->n_max) {
+    throw std::invalid_argument("expected 1 <= --n-min <= --n-max <= 7, got " +
+                                std::to_string(f->n_min) + ".." + std::to_string(f->n_max));
+  }
+  if (f->robots < 1 || f->train < kNumFolds || f->test < 1 || f->threads < 1 ||
+      f->ml_iterations < 1) {
+    throw std::invalid_argument("--robots, --test, --threads, --ml-iterations must be >= 1 and "
+                                "--train >= 5");
+  }
+  if (!(f->noise >= 0.0) || !(f->q_range > 0.0) || !(f->qd_range > 0.0) ||
+      !(f->qdd_range > 0.0) || !(f->friction_min >= 0.0) ||
+      !(f->friction_max >= f->friction_min)) {
+    throw std::invalid_argument("expected noise >= 0, positive ranges and "
+                                "0 <= friction-min <= friction-max");
+  }
+  if (!(f->fit_seconds > 0.0) || !(f->budget_cpu_seconds >= 0.0)) {
+    throw std::invalid_argument("expected --fit-seconds > 0 and --budget-cpu-seconds >= 0");
+  }
+  for (const std::string& m : f->models) {
+    bool known = false;
+    for (const ModelKind& kind : Models()) known = known || kind.name == m;
+    if (!known) throw std::invalid_argument("--models: unknown model '" + m + "'");
+  }
 }
 
 // True when `model` is to run (--models).
@@ -356,55 +317,48 @@ ModelSpec SpecOf(const ModelKind& kind) {
   return spec;
 }
 
-// Weight-space model (pol with D <= m, motor), hyper-parameters by ML-II or blocked CV. The
-// output scales stay at 1: one global torque scale and one noise level for all joints.
+// The grid of the cross-validated variants: log sigma of pol (absolute values; FitModel takes
+// offsets from the default, which is 0) and sigma_n relative to the output scales.
+const std::vector<double> kCvLogSigma = {-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 5.0, 8.0};
+const std::vector<double> kCvNoiseLevels = {0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0};
+
+// Weight-space model (pol with D <= m, motor), hyper-parameters by ML-II or blocked CV through
+// the library's FitModel. The output scales stay at 1 (OutputScaling::kUnit): one global
+// torque scale and one noise level for all joints, the paper's setting. The CV grid is the
+// paper's: offsets from the default log sigma (0) are the absolute values.
 FitResult FitWeightSpace(const ModelKind& kind, const Problem& p, Tuning tuning,
                          const Flags& f) {
-  const int n = static_cast<int>(p.Y_train.cols());
-  RobotModelOptions model_options;
-  model_options.form = Form::kWeightSpace;
-  RobotModel model(SpecOf(kind), n, model_options);
-  const FeatureMap& map = *model.feature_map();
-  Hyperparameters hyper = model.DefaultHyperparameters(p.Y_train);
-  hyper.log_output_scale.setZero();
-  FitResult result;
-  result.form = "weight space (D = " + std::to_string(map.dim()) + ")";
+  FitOptions options;
+  options.model.form = Form::kWeightSpace;
+  options.output_scaling = OutputScaling::kUnit;
   if (tuning == Tuning::kMaximumLikelihood) {
-    SufficientStatistics stats(map.dim(), n);
-    Matrix phi;
-    map.EvaluateRows(p.X_train, &phi);
-    stats.Accumulate(phi, p.Y_train);
-    WeightSpaceEvidence evidence(model.feature_map(), stats);
-    const MaximumLikelihoodSummary s = FitHyperparameters(evidence, MlOptions(f), &hyper);
-    result.note = std::string(ToString(s.termination)) + " after " +
-                  std::to_string(s.num_evaluations) + " evaluations";
-    if (!s.usable()) return result;
+    options.method = HyperparameterMethod::kEvidence;
+    options.evidence = MlOptions(f);
   } else {
-    const FoldStatistics folds(map, p.X_train, p.Y_train, kNumFolds);
-    std::vector<double> shapes;
-    if (map.num_shape_parameters() > 0) {
-      shapes = {-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 5.0, 8.0};
-    }
-    std::vector<double> noises;
-    for (double s : {0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0}) noises.push_back(std::log(s));
-    const auto candidates = HyperparameterGrid(hyper, shapes, noises);
-    int best = -1;
-    hyper = SelectByCrossValidation(map, folds, candidates, nullptr, &best);
-    if (best < 0) {
-      result.note = "every candidate failed";
-      return result;
-    }
+    options.method = HyperparameterMethod::kCrossValidation;
+    options.cv_folds = kNumFolds;
+    options.cv_shape_offsets = kCvLogSigma;
+    options.cv_noise_levels = kCvNoiseLevels;
+  }
+  const FittedModel fit = FitModel(SpecOf(kind), p.X_train, p.Y_train, Vector(), options);
+  FitResult result;
+  result.form = "weight space (D = " + std::to_string(fit.model.feature_map()->dim()) + ")";
+  if (tuning == Tuning::kMaximumLikelihood) {
+    result.note = std::string(ToString(fit.summary.termination)) + " after " +
+                  std::to_string(fit.summary.num_evaluations) + " evaluations";
+  } else if (fit.summary.IsUsable()) {
+    const Hyperparameters& hyper = fit.model.hyperparameters();
     std::ostringstream note;
     note << std::setprecision(3) << "sigma_n " << std::exp(hyper.log_noise_std);
-    if (map.num_shape_parameters() > 0) note << ", log sigma " << hyper.shape[0];
+    if (hyper.shape.size() > 0) note << ", log sigma " << hyper.shape[0];
     result.note = note.str();
   }
-  if (model.Fit(p.X_train, p.Y_train, hyper) != Status::kOk) {
-    result.note += "; fit failed";
+  if (!fit.summary.IsUsable()) {
+    result.note += (result.note.empty() ? "" : "; ") + fit.summary.message;
     return result;
   }
   Matrix prediction;
-  model.PredictRows(p.X_test, &prediction);
+  fit.model.PredictRows(p.X_test, &prediction);
   result.rms = MeanRms(p.F_test, prediction);
   return result;
 }
@@ -446,6 +400,9 @@ std::unique_ptr<Kernel> MakeKernel(const ModelKind& kind, const Problem& p) {
 }
 
 // Kernel-form model, hyper-parameters by ML-II; prediction K_* (K + sigma_n^2 I)^{-1} Y.
+// Not through FitModel: ARD rbf/rbfs kernels started from the data's spreads, a unit friction
+// prior and warm starts of "+fri" from the base model are this experiment's comparison, not
+// what the library's models offer.
 // A "+fri" model starts from the fitted parameters and noise of its base model when given
 // (`base`, a kernel-form result on the same data), with a unit friction prior.
 FitResult FitKernelForm(const ModelKind& kind, const Problem& p, const Flags& f,
@@ -808,7 +765,7 @@ std::string Markdown(const std::map<Key, Summary>& summaries, const std::vector<
                      const RunInfo& info, const Flags& f, const std::string& kept_discussion) {
   std::ostringstream o;
   o << "# Paper Section IV, Figs. 1 and 2: structured kernel vs. rbf, rbfs and motor models\n\n";
-  o << "Generated by `bench/paper_fig12.cc`:\n\n    " << info.command << "\n\n";
+  o << "Generated by `experiments/paper_fig12.cc`:\n\n    " << info.command << "\n\n";
   o << "Setting (Cheng et al., Sec. IV, as far as stated there; the choices here are ours):\n\n";
   o << "- robots: " << f.robots << " random KDL robots per N (`sim::RandomRobot(N, seed)`, "
     << "base seed " << f.seed << "), N = " << info.ns.front() << ".." << info.ns.back() << ";\n";
@@ -953,15 +910,9 @@ std::string KeptDiscussion(const std::string& path) {
   return text.substr(begin);
 }
 
-int Run(int argc, char** argv) {
-  const Flags f = ParseFlags(argc, argv);
-  for (const std::string& m : f.models) {
-    bool known = false;
-    for (const ModelKind& kind : Models()) known = known || kind.name == m;
-    if (!known) throw std::invalid_argument("--models: unknown model '" + m + "'");
-  }
+int Run(const Flags& f, const std::string& command) {
   RunInfo info;
-  info.command = CommandLine("paper_fig12", argc, argv);
+  info.command = command;
   std::printf("paper_fig12: N = %d..%d, %d robots per N, m = %d, %d validation states, "
               "%d threads, budget %.0f CPU-seconds\n",
               f.n_min, f.n_max, f.robots, f.train, f.test, f.threads, f.budget_cpu_seconds);
@@ -1059,5 +1010,14 @@ int Run(int argc, char** argv) {
 }  // namespace structgp
 
 int main(int argc, char** argv) {
-  return structgp::RunProgram("paper_fig12", structgp::kUsage, structgp::Run, argc, argv);
+  CLI::App app(
+      "The simulation study of the paper's Section IV (Figs. 1 and 2): prediction error of "
+      "pol, rbf, rbfs and motor, each alone and with friction, on random KDL robots.",
+      "paper_fig12");
+  structgp::Flags f;
+  structgp::AddFlags(&app, &f);
+  return structgp::RunProgram(&app, argc, argv, [&]() {
+    structgp::FinishFlags(app, &f);
+    return structgp::Run(f, structgp::CommandLine("paper_fig12", argc, argv));
+  });
 }

@@ -1,5 +1,5 @@
-#ifndef STRUCTGP_FEATURE_NYSTROM_FEATURE_MAP_H_
-#define STRUCTGP_FEATURE_NYSTROM_FEATURE_MAP_H_
+#ifndef STRUCTGP_KERNEL_NYSTROM_FEATURE_MAP_H_
+#define STRUCTGP_KERNEL_NYSTROM_FEATURE_MAP_H_
 
 /// @file
 /// Nystrom features: a reduced explicit feature map of any kernel, for online learning when
@@ -152,4 +152,4 @@ class NystromFeatureMap : public FeatureMap {
 
 }  // namespace structgp
 
-#endif  // STRUCTGP_FEATURE_NYSTROM_FEATURE_MAP_H_
+#endif  // STRUCTGP_KERNEL_NYSTROM_FEATURE_MAP_H_

@@ -7,7 +7,7 @@ training part, so that they span the whole training period) are given to
   * scikit-learn: GaussianProcessRegressor with ConstantKernel * RBF (one length scale per
     input, ARD) + WhiteKernel, normalize_y=True, its own optimiser (L-BFGS-B on the log
     marginal likelihood, one start), all joints as one multi-output target;
-  * structgp: pol+fri with type-II maximum likelihood, through the bench program real_data
+  * structgp: pol+fri with type-II maximum likelihood, through the experiment program real_data
     (--models=pol+fri): the explicit feature map in weight space for 3 joints, the kernel
     form (PolFormulaKernel + friction) otherwise.
 
@@ -17,14 +17,14 @@ time of the process over fit and prediction (numpy's BLAS may use several thread
 uses one). Test error:
 nMSE per joint = MSE_j / Var(test tau_j), mean over joints.
 
-Data sets: "sim3", a simulated three-joint KDL arm (bench program sim_robot_data: 5,000
+Data sets: "sim3", a simulated three-joint KDL arm (experiment program sim_robot_data: 5,000
 training and 2,000 following test rows), and "ur10", the real UR10 pick-and-place log
 (train.csv.gz / test.csv.gz of --data-dir/ur10-picknplace).
 
 Usage (from the source tree, after building real_data and sim_robot_data; Debian's python3
 with python3-sklearn, see scripts/install-deps.sh):
 
-    /usr/bin/python3 bench/sklearn_compare.py --build-dir=/path/to/build [--sizes=1000,2000,5000]
+    /usr/bin/python3 experiments/sklearn_compare.py --build-dir=/path/to/build [--sizes=1000,2000,5000]
         [--datasets=sim3,ur10] [--data-dir=../shared/data] [--out=docs/sklearn_comparison.csv]
 """
 
@@ -67,7 +67,7 @@ def write_robot_csv(path, X, Y, n):
 
 
 def evenly_spaced(rows, count):
-    """The same rows as EvenlySpaced in bench/real_data.cc."""
+    """The same rows as EvenlySpaced in experiments/real_data.cc."""
     if count <= 0 or count >= rows:
         return np.arange(rows)
     return np.array([k * rows // count for k in range(count)])
@@ -156,8 +156,8 @@ def fit_structgp(real_data, train_path, test_path, name, m, work):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--build-dir", required=True,
-                        help="CMake build directory holding bench/real_data and "
-                        "bench/sim_robot_data")
+                        help="CMake build directory holding experiments/real_data and "
+                        "experiments/sim_robot_data")
     parser.add_argument("--data-dir", default=os.path.join(os.path.dirname(__file__), "..", "..",
                                                            "shared", "data"))
     parser.add_argument("--sizes", default="1000,2000,5000")
@@ -170,8 +170,8 @@ def main():
     parser.add_argument("--out", default="", help="CSV file for the results")
     args = parser.parse_args()
 
-    real_data = os.path.join(args.build_dir, "bench", "real_data")
-    sim = os.path.join(args.build_dir, "bench", "sim_robot_data")
+    real_data = os.path.join(args.build_dir, "experiments", "real_data")
+    sim = os.path.join(args.build_dir, "experiments", "sim_robot_data")
     for exe in (real_data, sim):
         if not os.access(exe, os.X_OK):
             sys.exit("sklearn_compare: %s not found: build the targets real_data and "

@@ -3,8 +3,8 @@
 // s_j^2 k and noise s_j^2 sigma_n^2 has the same mean, so per-output scales do not enter.)
 // Dense: O(m^3) time and O(m^2) memory for m training rows.
 
-#ifndef STRUCTGP_BENCH_KERNEL_MEAN_H_
-#define STRUCTGP_BENCH_KERNEL_MEAN_H_
+#ifndef STRUCTGP_EXPERIMENTS_KERNEL_MEAN_H_
+#define STRUCTGP_EXPERIMENTS_KERNEL_MEAN_H_
 
 #include "structgp/core/types.h"
 #include "structgp/kernel/kernel.h"
@@ -22,4 +22,4 @@ Matrix KernelMean(const Kernel& kernel, const Matrix& X, const Matrix& alpha, co
 
 }  // namespace structgp
 
-#endif  // STRUCTGP_BENCH_KERNEL_MEAN_H_
+#endif  // STRUCTGP_EXPERIMENTS_KERNEL_MEAN_H_

@@ -1,7 +1,7 @@
-// Clocks of the bench programs: CPU time of the process and wall-clock time since a start.
+// Clocks of the experiment programs: CPU time of the process and wall-clock time since a start.
 
-#ifndef STRUCTGP_BENCH_TIMING_H_
-#define STRUCTGP_BENCH_TIMING_H_
+#ifndef STRUCTGP_EXPERIMENTS_TIMING_H_
+#define STRUCTGP_EXPERIMENTS_TIMING_H_
 
 #include <chrono>
 #include <ctime>
@@ -18,4 +18,4 @@ inline double Seconds(std::chrono::steady_clock::time_point start) {
 
 }  // namespace structgp
 
-#endif  // STRUCTGP_BENCH_TIMING_H_
+#endif  // STRUCTGP_EXPERIMENTS_TIMING_H_

@@ -2,7 +2,7 @@
 // time, train.csv (the first --train rows) and test.csv (the next --test rows): the
 // three-joint KDL arm (sim::ThreeLinkArm) along a sum-of-sines excitation trajectory, with
 // Coulomb and viscous friction on every joint and Gaussian torque noise. Used by
-// bench/sklearn_compare.py.
+// experiments/sklearn_compare.py.
 //
 //   sim_robot_data --out-dir=DIR [--train=5000] [--test=2000] [--seed=1] [--noise=0.01]
 //
@@ -20,7 +20,7 @@
 
 #include <Eigen/Core>
 
-#include "bench_program.h"
+#include "experiment_program.h"
 #include "structgp/io/csv.h"
 #include "structgp/io/data_error.h"
 #include "structgp/io/robot_data.h"
@@ -39,9 +39,25 @@ constexpr double kAmplitude = 1.5;       // rad
 constexpr double kCoulomb = 0.3;         // N m
 constexpr double kViscous = 0.2;         // N m s / rad
 
-const char kUsage[] =
-    "usage: sim_robot_data --out-dir=DIR [--train=5000] [--test=2000] [--seed=1] "
-    "[--noise=0.01]\n";
+struct Flags {
+  std::string out_dir;
+  int train = 5000;
+  int test = 2000;
+  std::uint64_t seed = 1;
+  double noise = 0.01;
+};
+
+void AddFlags(CLI::App* app, Flags* f) {
+  app->add_option("--out-dir", f->out_dir, "directory of train.csv and test.csv")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  AddFlag(app, "--train", &f->train, "rows of train.csv")->check(GreaterThan(0));
+  AddFlag(app, "--test", &f->test, "rows of test.csv (the rows that follow)")
+      ->check(GreaterThan(0));
+  AddFlag(app, "--seed", &f->seed, "seed of the trajectory (the noise uses seed + 1)");
+  AddFlag(app, "--noise", &f->noise, "noise std relative to the RMS of all noise-free torques")
+      ->check(AtLeast(0));
+}
 
 RobotData Part(const sim::Dataset& d, int begin, int count) {
   RobotData r;
@@ -52,35 +68,11 @@ RobotData Part(const sim::Dataset& d, int begin, int count) {
   return r;
 }
 
-int Run(int argc, char** argv) {
-  std::string out_dir;
-  int train = 5000, test = 2000;
-  std::uint64_t seed = 1;
-  double noise = 0.01;
-  ForEachFlag(argc, argv, [&](const Flag& flag) {
-    const std::string& name = flag.name();
-    if (name == "--out-dir") {
-      out_dir = flag.Value();
-    } else if (name == "--train") {
-      train = flag.Int();
-    } else if (name == "--test") {
-      test = flag.Int();
-    } else if (name == "--seed") {
-      seed = flag.Uint64();
-    } else if (name == "--noise") {
-      noise = flag.Number();
-    } else {
-      return false;
-    }
-    return true;
-  });
-  if (out_dir.empty()) throw std::invalid_argument("--out-dir is required");
-  if (train < 1 || test < 1 || !(noise >= 0.0)) {
-    throw std::invalid_argument("expected --train >= 1, --test >= 1 and --noise >= 0");
-  }
-  if (!std::filesystem::is_directory(out_dir)) {
-    throw std::invalid_argument("--out-dir '" + out_dir + "' is not a directory");
-  }
+int Run(const Flags& flags) {
+  const std::string& out_dir = flags.out_dir;
+  const int train = flags.train, test = flags.test;
+  const std::uint64_t seed = flags.seed;
+  const double noise = flags.noise;
   const sim::Robot robot = sim::ThreeLinkArm();
   const int n = robot.num_joints();
   const double duration = (train + test) * kDt;
@@ -111,5 +103,11 @@ int Run(int argc, char** argv) {
 }  // namespace structgp
 
 int main(int argc, char** argv) {
-  return structgp::RunProgram("sim_robot_data", structgp::kUsage, structgp::Run, argc, argv);
+  CLI::App app(
+      "Writes a simulated three-joint robot log (KDL arm, friction, noise) as train.csv and "
+      "test.csv.",
+      "sim_robot_data");
+  structgp::Flags f;
+  structgp::AddFlags(&app, &f);
+  return structgp::RunProgram(&app, argc, argv, [&]() { return structgp::Run(f); });
 }

@@ -1,4 +1,4 @@
-#include "structgp/feature/nystrom_feature_map.h"
+#include "structgp/kernel/nystrom_feature_map.h"
 
 #include <Eigen/Cholesky>
 #include <algorithm>

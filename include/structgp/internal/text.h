@@ -1,0 +1,23 @@
+#ifndef STRUCTGP_INTERNAL_TEXT_H_
+#define STRUCTGP_INTERNAL_TEXT_H_
+
+/// @file
+/// Text helpers of the library's reports and of the structgp program (not API).
+
+#include <string>
+#include <vector>
+
+namespace structgp {
+namespace internal {
+
+/// printf-style formatting into a string.
+std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+
+/// A table with aligned columns; rows[0] is the header. Columns of numbers are right-aligned;
+/// the first column and columns of text left-aligned ("-" and "n/a" count as neither).
+std::string Table(const std::vector<std::vector<std::string>>& rows, int indent = 2);
+
+}  // namespace internal
+}  // namespace structgp
+
+#endif  // STRUCTGP_INTERNAL_TEXT_H_

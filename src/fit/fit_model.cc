@@ -1,0 +1,521 @@
+#include "structgp/fit/fit_model.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "structgp/core/row_subset.h"
+#include "structgp/core/validate.h"
+#include "structgp/hyper/cross_validation.h"
+#include "structgp/hyper/evidence.h"
+#include "structgp/hyper/hyperparameter_layout.h"
+#include "structgp/internal/text.h"
+#include "structgp/model/sufficient_statistics.h"
+
+namespace structgp {
+namespace {
+
+using internal::Format;
+using internal::Table;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// One fit in progress: the clock, the callback and the summary being filled.
+class Fit {
+ public:
+  Fit(const FitOptions& options, RobotModel* model)
+      : options_(options), model_(model), start_(std::chrono::steady_clock::now()) {
+    summary_.method = options.method;
+    summary_.initial_negative_log_evidence = kNaN;
+    summary_.final_negative_log_evidence = kNaN;
+  }
+
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+  // Tells the callback; false when it asks to stop.
+  bool Report(const std::string& message, int iteration = 0, double nle = kNaN) {
+    if (!options_.callback) return true;
+    FitProgress p;
+    p.message = message;
+    p.iteration = iteration;
+    p.negative_log_evidence = nle;
+    p.seconds = seconds();
+    if (options_.callback(p) == FitCallbackReturn::kContinue) return true;
+    aborted_ = true;
+    return false;
+  }
+
+  // The evidence options with the fit's callback behind their iteration callback.
+  MaximumLikelihoodOptions EvidenceOptions() {
+    MaximumLikelihoodOptions o = options_.evidence;
+    if (options_.callback) {
+      auto user = o.iteration_callback;
+      o.iteration_callback = [this, user](int iteration, double nle) {
+        if (user && !user(iteration, nle)) return false;
+        return Report("", iteration, nle);
+      };
+    }
+    return o;
+  }
+
+  FitSummary Finish(FitTermination termination, std::string message) {
+    summary_.termination = termination;
+    summary_.message = std::move(message);
+    summary_.total_seconds = seconds();
+    return summary_;
+  }
+  FitSummary Aborted() { return Finish(FitTermination::kUserAbort, "the callback asked to stop"); }
+  bool aborted() const { return aborted_; }
+
+  // Records an evidence search; false (with the summary finished) when the model cannot be
+  // fitted after it.
+  bool TakeEvidenceSummary(const MaximumLikelihoodSummary& s) {
+    summary_.iterations = s.iterations;
+    summary_.num_evaluations = s.num_evaluations;
+    summary_.initial_negative_log_evidence = s.initial_negative_log_likelihood;
+    summary_.final_negative_log_evidence = s.final_negative_log_likelihood;
+    summary_.at_bounds = s.at_bounds;
+    switch (s.termination) {
+      case MaximumLikelihoodTermination::kMaxIterations:
+        search_end_ = FitTermination::kMaxIterations;
+        break;
+      case MaximumLikelihoodTermination::kLineSearchFailed:
+        search_end_ = FitTermination::kLineSearchFailed;
+        break;
+      default:
+        search_end_ = FitTermination::kConverged;
+        break;
+    }
+    search_message_ = s.message;
+    summary_.method_description = Format("type-II maximum likelihood (%s, %d iterations)",
+                                         ToString(s.termination), s.iterations);
+    if (!s.at_bounds.empty()) {
+      std::string names;
+      for (const auto& n : s.at_bounds) names += (names.empty() ? "" : ", ") + n;
+      summary_.notes.push_back("at a bound of its search box (the optimum may lie beyond): " +
+                               names);
+    }
+    return true;
+  }
+
+  const FitOptions& options() const { return options_; }
+  RobotModel* model() { return model_; }
+  FitSummary& summary() { return summary_; }
+  FitTermination search_end() const { return search_end_; }
+  const std::string& search_message() const { return search_message_; }
+  void set_search_message(std::string m) { search_message_ = std::move(m); }
+
+ private:
+  const FitOptions& options_;
+  RobotModel* model_;
+  std::chrono::steady_clock::time_point start_;
+  FitSummary summary_;
+  FitTermination search_end_ = FitTermination::kConverged;
+  std::string search_message_;
+  bool aborted_ = false;
+};
+
+// Feature-map models by evidence: noise and output scales profiled, then LBFGS on cached
+// Phi^T Phi. False when the fit ends here (summary finished by the caller's check).
+bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
+                          std::string* failure) {
+  const auto& map = fit->model()->feature_map();
+  if (!fit->Report(Format("accumulating Phi^T Phi over %d rows (D = %d)",
+                          static_cast<int>(X.rows()), map->dim()))) {
+    return false;
+  }
+  AccumulateOptions accumulate;
+  accumulate.num_threads = fit->options().num_threads;
+  SufficientStatistics stats = AccumulateStatistics(*map, X, Y, accumulate);
+  const WeightSpaceEvidence evidence(map, std::move(stats));
+  if (fit->options().profile_noise_and_scales &&
+      fit->options().output_scaling == OutputScaling::kPerJointRms) {
+    if (!fit->Report("profiling the noise level and output scales by evidence")) return false;
+    try {
+      *h = ProfileNoiseAndScales(evidence, *h);
+    } catch (const std::runtime_error& e) {
+      *failure = std::string("hyper-parameters by evidence: ") + e.what();
+      return false;
+    }
+  }
+  if (!fit->Report("maximising the evidence over the shape, block scales and noise (Ceres "
+                   "LBFGS)")) {
+    return false;
+  }
+  const MaximumLikelihoodSummary s = FitHyperparameters(evidence, fit->EvidenceOptions(), h);
+  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) return false;
+  if (!s.usable()) {
+    *failure = "type-II maximum likelihood: " + s.message;
+    return false;
+  }
+  fit->summary().hyperparameter_rows = static_cast<int>(X.rows());
+  fit->TakeEvidenceSummary(s);
+  return fit->Report(s.BriefReport());
+}
+
+bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
+                                 std::string* failure) {
+  const FeatureMap& map = *fit->model()->feature_map();
+  const FitOptions& o = fit->options();
+  if (o.cv_folds > X.rows()) {
+    throw std::invalid_argument(Format(
+        "cross-validation: need 2 <= folds <= %d (the number of rows), got %d folds",
+        static_cast<int>(X.rows()), o.cv_folds));
+  }
+  if (!fit->Report(Format("blocked %d-fold cross-validation statistics over %d rows (D = %d)",
+                          o.cv_folds, static_cast<int>(X.rows()), map.dim()))) {
+    return false;
+  }
+  const FoldStatistics folds(map, X, Y, o.cv_folds);
+  const Hyperparameters base = *h;
+  std::vector<double> shape_values;
+  if (map.num_shape_parameters() > 0) {
+    for (double offset : o.cv_shape_offsets) shape_values.push_back(base.shape[0] + offset);
+  }
+  std::vector<double> noise_values;
+  for (double level : o.cv_noise_levels) noise_values.push_back(std::log(level));
+  const std::vector<Hyperparameters> candidates =
+      HyperparameterGrid(base, shape_values, noise_values, 0);
+  if (!fit->Report(Format("scoring %d candidates", static_cast<int>(candidates.size())))) {
+    return false;
+  }
+  std::vector<CrossValidationResult> results;
+  int best = -1;
+  *h = SelectByCrossValidation(map, folds, candidates, &results, &best);
+  if (best < 0) {
+    *failure = "cross-validation: every candidate failed to factorise";
+    return false;
+  }
+  std::string chosen = Format("noise std %.3g", std::exp(h->log_noise_std));
+  if (!shape_values.empty()) {
+    chosen = map.shape_parameter_names()[0] + Format(" %.3g, ", h->shape[0]) + chosen;
+  }
+  const auto at_edge = [](double value, const std::vector<double>& grid) {
+    return value == *std::min_element(grid.begin(), grid.end()) ||
+           value == *std::max_element(grid.begin(), grid.end());
+  };
+  if ((!shape_values.empty() && at_edge(h->shape[0], shape_values)) ||
+      at_edge(h->log_noise_std, noise_values)) {
+    fit->summary().notes.push_back(
+        "the best candidate lies on the edge of the grid; type-II maximum likelihood searches "
+        "without a grid");
+  }
+  FitSummary& summary = fit->summary();
+  summary.cv_candidates = static_cast<int>(candidates.size());
+  summary.cv_mean_nmse = results[static_cast<size_t>(best)].mean_nmse;
+  summary.hyperparameter_rows = static_cast<int>(X.rows());
+  summary.method_description =
+      Format("blocked %d-fold cross-validation over %d candidates (%s; held-out nMSE %.4g)",
+             o.cv_folds, static_cast<int>(candidates.size()), chosen.c_str(),
+             summary.cv_mean_nmse);
+  fit->set_search_message("scored " + std::to_string(candidates.size()) + " candidates");
+  return true;
+}
+
+// Kernel models by evidence on an evenly spaced subset. *h holds the kernel's default
+// parameters in shape (RobotModel::DefaultHyperparameters); the fitted ones replace them, and
+// RobotModel::Fit(X, Y, *h) then builds the kernel from them.
+bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
+                      std::string* failure) {
+  RobotModel* model = fit->model();
+  const Kernel& kernel = *model->kernel();
+  const int limit = fit->options().max_evidence_rows;
+  const std::vector<int> rows = EvenlySpacedRows(X.rows(), limit);
+  const Matrix Xs = SelectRows(X, rows);
+  const Matrix Ys = SelectRows(Y, rows);
+  const int used = static_cast<int>(rows.size());
+  if (!fit->Report(Format("maximising the evidence of the kernel on %d of %d rows (Ceres LBFGS, "
+                          "O(m^3) per evaluation)",
+                          used, static_cast<int>(X.rows())))) {
+    return false;
+  }
+  const MaximumLikelihoodSummary s =
+      FitKernelHyperparameters(kernel, Xs, Ys, fit->EvidenceOptions(), h);
+  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) return false;
+  if (!s.usable()) {
+    *failure = "type-II maximum likelihood: " + s.message;
+    return false;
+  }
+  fit->summary().hyperparameter_rows = used;
+  fit->TakeEvidenceSummary(s);
+  if (used < X.rows()) {
+    fit->summary().notes.push_back(
+        Format("kernel hyper-parameters fitted on %d evenly spaced rows of %d", used,
+               static_cast<int>(X.rows())));
+  }
+  return fit->Report(s.BriefReport());
+}
+
+void CheckData(const RobotModel& model, const ConstMatrixRef& states, const ConstMatrixRef& torques,
+               const ConstVectorRef& t) {
+  const int N = model.num_joints();
+  RequireSize("FitModel states", states.cols(), 3 * N, "columns (q, qd, qdd of each joint)");
+  RequireSize("FitModel torques", torques.cols(), N, "columns (joints)");
+  RequireSize("FitModel torques", torques.rows(), states.rows(), "rows (as in the states)");
+  if (t.size() != 0) RequireSize("FitModel t", t.size(), states.rows(), "times (one per row)");
+  if (states.rows() < 1) throw std::invalid_argument("FitModel: expected at least 1 row, got 0");
+  RequireFinite("FitModel states", states);
+  RequireFinite("FitModel torques", torques);
+  RequireFinite("FitModel t", t);
+}
+
+std::string Number(double value) { return Format("%.6g", value); }
+
+}  // namespace
+
+const char* ToString(HyperparameterMethod method) {
+  switch (method) {
+    case HyperparameterMethod::kEvidence:
+      return "ml";
+    case HyperparameterMethod::kCrossValidation:
+      return "cv";
+    case HyperparameterMethod::kFixed:
+      return "fixed";
+  }
+  return "unknown";
+}
+
+bool FromString(const std::string& text, HyperparameterMethod* method) {
+  for (HyperparameterMethod m : {HyperparameterMethod::kEvidence,
+                                 HyperparameterMethod::kCrossValidation,
+                                 HyperparameterMethod::kFixed}) {
+    if (text == ToString(m)) {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+const char* ToString(FitTermination termination) {
+  switch (termination) {
+    case FitTermination::kConverged:
+      return "converged";
+    case FitTermination::kMaxIterations:
+      return "max_iterations";
+    case FitTermination::kLineSearchFailed:
+      return "line_search_failed";
+    case FitTermination::kUserAbort:
+      return "user_abort";
+    case FitTermination::kFailure:
+      return "failure";
+  }
+  return "unknown";
+}
+
+bool FitOptions::IsValid(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  std::string reason;
+  if (method == HyperparameterMethod::kEvidence && !evidence.IsValid(&reason)) {
+    return fail("FitOptions::evidence: " + reason);
+  }
+  if (max_evidence_rows < 0) {
+    return fail("FitOptions::max_evidence_rows: expected >= 0 (0: every row), got " +
+                std::to_string(max_evidence_rows));
+  }
+  if (cv_folds < 2) {
+    return fail("FitOptions::cv_folds: expected >= 2, got " + std::to_string(cv_folds));
+  }
+  if (method == HyperparameterMethod::kCrossValidation && cv_noise_levels.empty()) {
+    return fail("FitOptions::cv_noise_levels: expected at least one level, got none");
+  }
+  for (double level : cv_noise_levels) {
+    if (!(level > 0.0) || !std::isfinite(level)) {
+      return fail("FitOptions::cv_noise_levels: expected finite levels > 0, got " +
+                  Format("%g", level));
+    }
+  }
+  for (double offset : cv_shape_offsets) {
+    if (!std::isfinite(offset)) {
+      return fail("FitOptions::cv_shape_offsets: expected finite offsets, got " +
+                  Format("%g", offset));
+    }
+  }
+  if (num_threads < 1) {
+    return fail("FitOptions::num_threads: expected >= 1, got " + std::to_string(num_threads));
+  }
+  return true;
+}
+
+bool FitSummary::IsUsable() const {
+  return termination == FitTermination::kConverged ||
+         termination == FitTermination::kMaxIterations ||
+         termination == FitTermination::kLineSearchFailed;
+}
+
+std::string FitSummary::BriefReport() const {
+  std::string text = Format("fit (%s): %s", ToString(method), ToString(termination));
+  if (method == HyperparameterMethod::kEvidence && std::isfinite(final_negative_log_evidence)) {
+    text += Format(", %d iterations, %d evaluations, -log p(Y) %.6g -> %.6g", iterations,
+                   num_evaluations, initial_negative_log_evidence, final_negative_log_evidence);
+  }
+  if (method == HyperparameterMethod::kCrossValidation && cv_candidates > 0) {
+    text += Format(", %d candidates, held-out nMSE %.4g", cv_candidates, cv_mean_nmse);
+  }
+  text += Format(", %d of %d rows in the model, %.2f s", model_rows, rows, total_seconds);
+  if (!IsUsable()) text += ": " + message;
+  return text;
+}
+
+Matrix ModelInputs(const RobotModel& model, const ConstMatrixRef& states, const ConstVectorRef& t) {
+  RequireSize("ModelInputs states", states.cols(), 3 * model.num_joints(),
+              "columns (q, qd, qdd of each joint)");
+  if (!model.uses_time()) return states;
+  if (t.size() == 0) {
+    throw std::invalid_argument("the model uses the time (effects '" +
+                                ToString(model.spec().effects) + "'), but no times were given");
+  }
+  RequireSize("ModelInputs t", t.size(), states.rows(), "times (one per row)");
+  Matrix X(states.rows(), states.cols() + 1);
+  X << states, t;
+  return X;
+}
+
+FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
+                    const ConstMatrixRef& torques, const ConstVectorRef& t, RobotModel* model) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  if (model == nullptr) throw std::invalid_argument("FitModel: model is null");
+  CheckData(*model, states, torques, t);
+  const bool kernel_model = model->feature_map() == nullptr;
+  if (options.method == HyperparameterMethod::kCrossValidation && kernel_model) {
+    throw std::invalid_argument(
+        "cross-validation needs a model with an explicit feature map (motor, or pol up to 3 "
+        "joints); '" +
+        ToString(model->spec()) + "' for " + std::to_string(model->num_joints()) +
+        " joints runs in function space (use type-II maximum likelihood or fixed "
+        "hyper-parameters)");
+  }
+  const Matrix X = ModelInputs(*model, states, t);
+  const Matrix Y = torques;
+
+  Fit fit(options, model);
+  FitSummary& summary = fit.summary();
+  summary.rows = static_cast<int>(X.rows());
+  Hyperparameters h = model->DefaultHyperparameters(Y);
+  if (options.output_scaling == OutputScaling::kUnit) h.log_output_scale.setZero();
+  std::string failure;
+  bool go_on = true;
+  switch (options.method) {
+    case HyperparameterMethod::kEvidence:
+      go_on = kernel_model ? KernelByEvidence(X, Y, &fit, &h, &failure)
+                           : FeatureMapByEvidence(X, Y, &fit, &h, &failure);
+      break;
+    case HyperparameterMethod::kCrossValidation:
+      go_on = FeatureMapByCrossValidation(X, Y, &fit, &h, &failure);
+      break;
+    case HyperparameterMethod::kFixed:
+      summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";
+      fit.set_search_message("fixed hyper-parameters: nothing to search");
+      break;
+  }
+  summary.hyperparameter_seconds = fit.seconds();
+  if (fit.aborted()) return fit.Aborted();
+  if (!go_on) return fit.Finish(FitTermination::kFailure, failure);
+
+  if (!fit.Report(Format("fitting the model to %d rows", static_cast<int>(X.rows())))) {
+    return fit.Aborted();
+  }
+  const Status status = model->Fit(X, Y, h);
+  if (status != Status::kOk) {
+    return fit.Finish(
+        FitTermination::kFailure,
+        std::string("fitting the model failed: ") + ToString(status) +
+            " (the posterior precision is not numerically positive definite; try fixed "
+            "hyper-parameters, or check the data for duplicated rows)");
+  }
+  summary.model_rows = static_cast<int>(model->gp().fit_rows());
+  if (model->gp().subsampled()) {
+    const std::string note = Format(
+        "the function-space form was fitted on %d evenly spaced rows of %d (its row limit: the "
+        "fit costs O(m^3) time and O(m^2) memory); a model with an explicit feature map (motor, "
+        "pol up to 3 joints) learns from every row",
+        static_cast<int>(model->gp().fit_rows()), static_cast<int>(model->gp().data_rows()));
+    summary.notes.push_back(note);
+    if (!fit.Report(note)) return fit.Aborted();
+  }
+  return fit.Finish(fit.search_end(), fit.search_message());
+}
+
+FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,
+                     const ConstMatrixRef& torques, const ConstVectorRef& t,
+                     const FitOptions& options) {
+  FittedModel out{RobotModel(spec, static_cast<int>(torques.cols()), options.model), {}};
+  out.summary = FitModel(options, states, torques, t, &out.model);
+  return out;
+}
+
+std::string FitReport(const RobotModel& model, const FitSummary& summary) {
+  std::ostringstream os;
+  const int N = model.num_joints();
+  if (!model.fitted()) {
+    os << "not fitted: " << ToString(summary.termination) << ": " << summary.message << "\n";
+    return os.str();
+  }
+  const GaussianProcess& gp = model.gp();
+  if (model.feature_map()) {
+    os << "features     D = " << model.feature_map()->dim() << " (" << ToString(gp.form())
+       << " form)\n";
+  } else {
+    os << "features     none: kernel model (" << ToString(gp.form()) << " form, "
+       << gp.function_space()->size() << " stored points)\n";
+  }
+  os << "hyper        " << summary.method_description
+     << Format(", %.2f s", summary.total_seconds) << "\n";
+  for (const auto& note : summary.notes) os << "             " << note << "\n";
+  std::vector<std::vector<std::string>> rows = {{"parameter", "value"}};
+  const Hyperparameters& h = model.hyperparameters();
+  if (model.feature_map()) {
+    FreeHyperparameters all;
+    all.output_scales = true;
+    const HyperparameterLayout layout(*model.feature_map(), N, all);
+    const Vector values = layout.Flatten(h);
+    for (int i = 0; i < layout.size(); ++i) {
+      rows.push_back({layout.names()[static_cast<size_t>(i)], Number(values[i])});
+    }
+  } else {
+    const Vector theta = model.kernel()->parameters();
+    const auto names = model.kernel()->parameter_names();
+    for (Eigen::Index i = 0; i < theta.size(); ++i) {
+      rows.push_back({names[static_cast<size_t>(i)], Number(theta[i])});
+    }
+    rows.push_back({"log_noise_std", Number(h.log_noise_std)});
+    for (int j = 0; j < N; ++j) {
+      rows.push_back({Format("log_output_scale_%d", j + 1), Number(h.log_output_scale[j])});
+    }
+  }
+  os << Table(rows, 4);
+  os << "noise std   ";
+  for (int j = 0; j < N; ++j) {
+    os << Format(" tau%d %.4g", j + 1, std::exp(h.log_noise_std + h.log_output_scale[j]));
+  }
+  os << "  (sigma_n times the output scale)\n";
+  os << "log marginal likelihood " << Format("%.6g", gp.LogMarginalLikelihood()) << " nats\n";
+  const auto names = model.ParametricFeatureNames();
+  if (gp.weight_space() != nullptr && !names.empty()) {
+    os << "coefficients (posterior mean +- std, per joint torque):\n";
+    std::vector<std::vector<std::string>> coef = {{"feature"}};
+    for (int j = 1; j <= N; ++j) coef[0].push_back(Format("tau%d", j));
+    for (const auto& name : names) {
+      std::vector<std::string> row = {name};
+      for (int j = 1; j <= N; ++j) {
+        const auto [value, std] = model.Coefficient(name, j);
+        row.push_back(Format("%.4g +- %.2g", value, std));
+      }
+      coef.push_back(row);
+    }
+    os << Table(coef, 4);
+  }
+  return os.str();
+}
+
+}  // namespace structgp

@@ -1,0 +1,303 @@
+// The library's fitting workflow (fit/fit_model.h) against the same steps assembled by hand
+// from the lower layers (statistics, evidence, LBFGS, cross-validation, RobotModel::Fit): the
+// predictions must be bit-identical. Also the callback (progress, abort), the options'
+// validation and the errors for caller mistakes.
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "structgp/core/row_subset.h"
+#include "structgp/fit/fit_model.h"
+#include "structgp/hyper/cross_validation.h"
+#include "structgp/hyper/evidence.h"
+#include "structgp/hyper/marginal_likelihood.h"
+#include "structgp/model/sufficient_statistics.h"
+#include "structgp/sim/hidden_effect.h"
+
+namespace structgp {
+namespace {
+
+// A slow two-link log with Coulomb friction on joint 2 (seed 3), as the demo simulates it.
+const sim::HiddenEffectScenario& Scenario() {
+  static const sim::HiddenEffectScenario scenario = [] {
+    sim::HiddenEffectOptions o;
+    o.effect = sim::HiddenEffect::kCoulomb;
+    o.joint = 2;
+    o.seed = 3;
+    return sim::MakeHiddenEffectScenario(sim::TwoLinkArm(), o);
+  }();
+  return scenario;
+}
+
+ModelSpec Spec(const std::string& model, const std::string& effects = "") {
+  ModelSpec spec = ParseModelSpec(model);
+  if (!effects.empty()) spec.effects = ParseEffectList(effects);
+  return spec;
+}
+
+Matrix Predictions(const RobotModel& model, const Matrix& X) {
+  Matrix mean, std;
+  model.PredictRows(X, &mean, &std);
+  Matrix both(mean.rows(), 2 * mean.cols());
+  both << mean, std;
+  return both;
+}
+
+// The weight-space workflow by hand: Phi^T Phi, profile noise and scales, LBFGS, fit.
+TEST(FitModel, EvidenceEqualsTheStepsByHand) {
+  const sim::Dataset& d = Scenario().train;
+  const ModelSpec spec = Spec("pol+fri");
+  const FittedModel fit = FitModel(spec, d.X, d.Y, Vector());
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  EXPECT_EQ(fit.summary.method, HyperparameterMethod::kEvidence);
+  EXPECT_GT(fit.summary.iterations, 0);
+  EXPECT_EQ(fit.summary.rows, d.X.rows());
+  EXPECT_EQ(fit.summary.model_rows, d.X.rows());
+  EXPECT_LE(fit.summary.final_negative_log_evidence, fit.summary.initial_negative_log_evidence);
+
+  RobotModel reference(spec, 2);
+  const SufficientStatistics stats = AccumulateStatistics(*reference.feature_map(), d.X, d.Y);
+  const WeightSpaceEvidence evidence(reference.feature_map(), stats);
+  Hyperparameters h = ProfileNoiseAndScales(evidence, reference.DefaultHyperparameters(d.Y));
+  const MaximumLikelihoodSummary s = FitHyperparameters(evidence, MaximumLikelihoodOptions(), &h);
+  ASSERT_TRUE(s.usable());
+  ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  EXPECT_EQ(fit.summary.iterations, s.iterations);
+  EXPECT_EQ(fit.summary.final_negative_log_evidence, s.final_negative_log_likelihood);
+  EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
+}
+
+// Unit output scales: no profile, the scales stay 1, LBFGS from the defaults.
+TEST(FitModel, UnitOutputScalesEqualTheStepsByHand) {
+  const sim::Dataset& d = Scenario().train;
+  const ModelSpec spec = Spec("pol");
+  FitOptions options;
+  options.output_scaling = OutputScaling::kUnit;
+  const FittedModel fit = FitModel(spec, d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  EXPECT_EQ(fit.model.hyperparameters().log_output_scale, Vector::Zero(2));
+
+  RobotModel reference(spec, 2);
+  const SufficientStatistics stats = AccumulateStatistics(*reference.feature_map(), d.X, d.Y);
+  const WeightSpaceEvidence evidence(reference.feature_map(), stats);
+  Hyperparameters h = reference.DefaultHyperparameters(d.Y);
+  h.log_output_scale.setZero();
+  ASSERT_TRUE(FitHyperparameters(evidence, MaximumLikelihoodOptions(), &h).usable());
+  ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
+}
+
+TEST(FitModel, CrossValidationEqualsTheStepsByHand) {
+  const sim::Dataset& d = Scenario().train;
+  const ModelSpec spec = Spec("pol");
+  FitOptions options;
+  options.method = HyperparameterMethod::kCrossValidation;
+  options.cv_folds = 4;
+  options.cv_shape_offsets = {-1.0, 0.0, 1.0};
+  options.cv_noise_levels = {0.1, 0.01};
+  const FittedModel fit = FitModel(spec, d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  EXPECT_EQ(fit.summary.cv_candidates, 6);
+
+  RobotModel reference(spec, 2);
+  const FeatureMap& map = *reference.feature_map();
+  const Hyperparameters base = reference.DefaultHyperparameters(d.Y);
+  const FoldStatistics folds(map, d.X, d.Y, 4);
+  const auto candidates = HyperparameterGrid(
+      base, {base.shape[0] - 1.0, base.shape[0], base.shape[0] + 1.0},
+      {std::log(0.1), std::log(0.01)}, 0);
+  std::vector<CrossValidationResult> results;
+  int best = -1;
+  const Hyperparameters h = SelectByCrossValidation(map, folds, candidates, &results, &best);
+  ASSERT_GE(best, 0);
+  ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  EXPECT_EQ(fit.summary.cv_mean_nmse, results[static_cast<size_t>(best)].mean_nmse);
+  EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
+}
+
+TEST(FitModel, FixedIsTheModelsDefaults) {
+  const sim::Dataset& d = Scenario().train;
+  FitOptions options;
+  options.method = HyperparameterMethod::kFixed;
+  const FittedModel fit = FitModel(Spec("motor+fri"), d.X, d.Y, Vector(), options);
+  ASSERT_EQ(fit.summary.termination, FitTermination::kConverged);
+  RobotModel reference(Spec("motor+fri"), 2);
+  ASSERT_EQ(reference.Fit(d.X, d.Y), Status::kOk);
+  EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
+}
+
+// Kernel models: the kernel's hyper-parameters by evidence on the evenly spaced subset, then
+// the model on every row.
+TEST(FitModel, KernelEvidenceOnTheEvenlySpacedSubset) {
+  // The first 400 rows: the function-space fit costs O(m^3).
+  sim::Dataset d = Scenario().train;
+  d.X = d.X.topRows(400).eval();
+  d.Y = d.Y.topRows(400).eval();
+  const ModelSpec spec = Spec("rbf");
+  FitOptions options;
+  options.max_evidence_rows = 120;
+  options.evidence.max_iterations = 15;
+  const FittedModel fit = FitModel(spec, d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  EXPECT_EQ(fit.summary.hyperparameter_rows, 120);
+
+  RobotModel reference(spec, 2);
+  // The kernel's default parameters in h.shape; the fit replaces them.
+  Hyperparameters h = reference.DefaultHyperparameters(d.Y);
+  const std::vector<int> rows = EvenlySpacedRows(d.X.rows(), 120);
+  ASSERT_EQ(rows[3], 10);  // floor(k m / M) = floor(3 * 400 / 120)
+  const MaximumLikelihoodSummary s =
+      FitKernelHyperparameters(*reference.kernel(), SelectRows(d.X, rows), SelectRows(d.Y, rows),
+                               options.evidence, &h);
+  ASSERT_TRUE(s.usable());
+  ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
+}
+
+TEST(FitModel, CallbackSeesProgressAndIterations) {
+  const sim::Dataset& d = Scenario().train;
+  FitOptions options;
+  std::vector<std::string> messages;
+  int iterations = 0;
+  options.callback = [&](const FitProgress& p) {
+    if (p.message.empty()) {
+      ++iterations;
+      EXPECT_TRUE(std::isfinite(p.negative_log_evidence));
+    } else {
+      messages.push_back(p.message);
+    }
+    return FitCallbackReturn::kContinue;
+  };
+  const FittedModel fit = FitModel(Spec("pol"), d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable());
+  EXPECT_GE(iterations, fit.summary.iterations);
+  ASSERT_GE(messages.size(), 4u);
+  EXPECT_NE(messages.front().find("accumulating Phi^T Phi"), std::string::npos);
+  EXPECT_NE(messages.back().find("fitting the model to"), std::string::npos);
+}
+
+TEST(FitModel, CallbackAbortLeavesTheModelUnfitted) {
+  const sim::Dataset& d = Scenario().train;
+  for (int stop_after : {0, 2}) {
+    FitOptions options;
+    int calls = 0;
+    options.callback = [&](const FitProgress& p) {
+      if (!p.message.empty()) return FitCallbackReturn::kContinue;
+      return ++calls > stop_after ? FitCallbackReturn::kAbort : FitCallbackReturn::kContinue;
+    };
+    const FittedModel fit = FitModel(Spec("pol"), d.X, d.Y, Vector(), options);
+    EXPECT_EQ(fit.summary.termination, FitTermination::kUserAbort) << stop_after;
+    EXPECT_FALSE(fit.summary.IsUsable());
+    EXPECT_FALSE(fit.model.fitted());
+  }
+  // Abort at the first progress line: nothing is computed.
+  FitOptions options;
+  options.callback = [](const FitProgress&) { return FitCallbackReturn::kAbort; };
+  RobotModel model(Spec("pol"), 2);
+  const FitSummary summary = FitModel(options, d.X, d.Y, Vector(), &model);
+  EXPECT_EQ(summary.termination, FitTermination::kUserAbort);
+  EXPECT_FALSE(model.fitted());
+}
+
+TEST(FitOptions, IsValidNamesTheBadOption) {
+  std::string error;
+  EXPECT_TRUE(FitOptions().IsValid(&error));
+  struct Case {
+    const char* name;
+    void (*change)(FitOptions*);
+  };
+  const Case cases[] = {
+      {"cv_folds", [](FitOptions* o) { o->cv_folds = 1; }},
+      {"max_evidence_rows", [](FitOptions* o) { o->max_evidence_rows = -1; }},
+      {"cv_noise_levels", [](FitOptions* o) { o->cv_noise_levels = {0.1, -0.1}; }},
+      {"cv_shape_offsets", [](FitOptions* o) { o->cv_shape_offsets = {NAN}; }},
+      {"num_threads", [](FitOptions* o) { o->num_threads = 0; }},
+      {"evidence", [](FitOptions* o) { o->evidence.max_iterations = -1; }},
+  };
+  for (const Case& c : cases) {
+    FitOptions o;
+    c.change(&o);
+    error.clear();
+    EXPECT_FALSE(o.IsValid(&error)) << c.name;
+    EXPECT_NE(error.find(c.name), std::string::npos) << error;
+    const sim::Dataset& d = Scenario().train;
+    EXPECT_THROW(FitModel(Spec("motor"), d.X, d.Y, Vector(), o), std::invalid_argument);
+  }
+}
+
+TEST(FitModel, CallerMistakesThrowWithWhatIsWrong) {
+  const sim::Dataset& d = Scenario().train;
+  auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  // Torques of the wrong width.
+  EXPECT_NE(message([&] { FitModel(Spec("pol"), d.X, d.Y.leftCols(1), Vector()); })
+                .find("columns"),
+            std::string::npos);
+  // NaN in the states.
+  Matrix X = d.X;
+  X(3, 1) = NAN;
+  EXPECT_NE(message([&] { FitModel(Spec("pol"), X, d.Y, Vector()); }).find("states"),
+            std::string::npos);
+  // A time effect without times.
+  EXPECT_NE(message([&] { FitModel(Spec("pol", "drift@1"), d.X, d.Y, Vector()); })
+                .find("no times were given"),
+            std::string::npos);
+  // Cross-validation on a kernel model.
+  FitOptions cv;
+  cv.method = HyperparameterMethod::kCrossValidation;
+  EXPECT_NE(message([&] { FitModel(Spec("rbf"), d.X, d.Y, Vector(), cv); })
+                .find("explicit feature map"),
+            std::string::npos);
+  // More folds than rows.
+  cv.cv_folds = 50;
+  EXPECT_NE(message([&] {
+              FitModel(Spec("motor"), d.X.topRows(20), d.Y.topRows(20), Vector(), cv);
+            }).find("folds"),
+            std::string::npos);
+}
+
+TEST(FitModel, TimeEffectsUseTheTimes) {
+  const sim::Dataset& d = Scenario().train;
+  FitOptions options;
+  options.method = HyperparameterMethod::kFixed;
+  const FittedModel fit = FitModel(Spec("pol", "drift@2"), d.X, d.Y, d.t, options);
+  ASSERT_TRUE(fit.summary.IsUsable());
+  RobotModel reference(Spec("pol", "drift@2"), 2);
+  Matrix X(d.X.rows(), d.X.cols() + 1);
+  X << d.X, d.t;
+  ASSERT_EQ(reference.Fit(X, d.Y), Status::kOk);
+  EXPECT_EQ(Predictions(fit.model, X), Predictions(reference, X));
+  EXPECT_EQ(ModelInputs(fit.model, d.X, d.t), X);
+}
+
+TEST(FitReport, ListsHyperparametersEvidenceAndCoefficients) {
+  const sim::Dataset& d = Scenario().train;
+  const FittedModel fit = FitModel(Spec("pol", "coulomb@2"), d.X, d.Y, Vector());
+  const std::string report = FitReport(fit.model, fit.summary);
+  for (const char* part : {"features     D = ", "type-II maximum likelihood", "log_noise_std",
+                           "log marginal likelihood", "coulomb@2"}) {
+    EXPECT_NE(report.find(part), std::string::npos) << part << "\n" << report;
+  }
+  EXPECT_NE(fit.summary.BriefReport().find("converged"), std::string::npos);
+}
+
+TEST(RowSubset, FloorOfKmOverM) {
+  EXPECT_EQ(EvenlySpacedRows(10, 4), (std::vector<int>{0, 2, 5, 7}));
+  EXPECT_EQ(EvenlySpacedRows(3, 5), (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(EvenlySpacedRows(4, 0), (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_THROW(EvenlySpacedRows(-1, 2), std::invalid_argument);
+  const Matrix X = (Matrix(3, 1) << 1, 2, 3).finished();
+  EXPECT_THROW(SelectRows(X, {0, 3}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace structgp
