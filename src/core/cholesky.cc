@@ -1,6 +1,7 @@
 #include "structgp/internal/cholesky.h"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -37,9 +38,7 @@ bool Attempt(const ConstMatrixRef& A, JitterScale scale, double mean_diagonal, d
 
 }  // namespace
 
-double MeanDiagonal(const ConstMatrixRef& A) {
-  return std::max(A.diagonal().mean(), DBL_MIN);
-}
+double MeanDiagonal(const ConstMatrixRef& A) { return std::max(A.diagonal().mean(), DBL_MIN); }
 
 CholeskyResult Cholesky::Factorize(const ConstMatrixRef& A, const CholeskyOptions& options) {
   if (A.rows() != A.cols()) {

@@ -25,8 +25,7 @@ void GramImpl(const Kernel& kernel, const ConstMatrixRef& A, const ConstMatrixRe
 
 }  // namespace
 
-void KernelGram(const Kernel& kernel, const ConstMatrixRef& A, const ConstMatrixRef& B,
-                Matrix* K) {
+void KernelGram(const Kernel& kernel, const ConstMatrixRef& A, const ConstMatrixRef& B, Matrix* K) {
   GramImpl(kernel, A, B, /*symmetric=*/false, K);
 }
 

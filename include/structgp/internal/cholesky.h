@@ -33,7 +33,7 @@
 /// that it calls allocates its own GEMM workspace above a few hundred rows (none measured up to
 /// n = 300). No real-time path factorises.
 
-#include <cfloat>
+#include <utility>
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
@@ -131,7 +131,7 @@ class Cholesky {
     SolveInPlace(x);
     return x;
   }
-  /// x <- (L L^T)^{-1} x, allocation-free.
+  /// x <- (L L^T)^{-1} x; allocation-free for a vector.
   template <typename Derived>
   void SolveInPlace(Eigen::MatrixBase<Derived>& x) const {
     matrixL().solveInPlace(x);

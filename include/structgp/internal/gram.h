@@ -15,8 +15,7 @@ namespace internal {
 /// K(i, j) = k(a_i, b_j) for the columns a_i of A and b_j of B; K is resized to
 /// A.cols() x B.cols() (allocates only when its size changes). Throws std::invalid_argument
 /// when A or B does not have kernel.input_dim() rows.
-void KernelGram(const Kernel& kernel, const ConstMatrixRef& A, const ConstMatrixRef& B,
-                Matrix* K);
+void KernelGram(const Kernel& kernel, const ConstMatrixRef& A, const ConstMatrixRef& B, Matrix* K);
 
 /// The symmetric Gram matrix of the columns of X: K(i, j) = k(x_i, x_j) evaluated once for
 /// i <= j (the earlier point first, the order KernelGP::Add uses) and copied to K(j, i).
