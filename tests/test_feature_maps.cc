@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "feature_map_battery.h"
+#include "battery_options.h"
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/gravity_basis_feature_map.h"
 #include "structgp/feature/motor_feature_map.h"
@@ -24,6 +24,7 @@ namespace structgp {
 namespace {
 
 using testing::BatteryOptions;
+using testing::CountingBatteryOptions;
 using testing::RandomStates;
 using testing::RunFeatureMapBattery;
 
@@ -85,7 +86,7 @@ TEST(FeatureMapBattery, Pol) {
   for (int n = 1; n <= 4; ++n) {
     SCOPED_TRACE("N = " + std::to_string(n));
     const PolFeatureMap map(n);
-    BatteryOptions opt;
+    BatteryOptions opt = CountingBatteryOptions();
     opt.seed = 1000 + static_cast<std::uint64_t>(n);
     opt.num_states = n == 4 ? 12 : 30;  // D = 8830 at N = 4: keep the Gram check small
     opt.shapes = LogSigmas({-2.0, 0.0, 0.8, 3.0});
@@ -102,7 +103,7 @@ TEST(FeatureMapBattery, PolGravityFree) {
     PolOptions options;
     options.include_gravity = false;
     const PolFeatureMap map(n, options);
-    BatteryOptions opt;
+    BatteryOptions opt = CountingBatteryOptions();
     opt.seed = 2000 + static_cast<std::uint64_t>(n);
     opt.shapes = LogSigmas({-1.0, 0.0, 1.5});
     opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector& s) {
@@ -116,7 +117,7 @@ TEST(FeatureMapBattery, GravityBasis) {
   for (int n = 1; n <= 4; ++n) {
     SCOPED_TRACE("N = " + std::to_string(n));
     const GravityBasisFeatureMap broad(n);
-    BatteryOptions opt;
+    BatteryOptions opt = CountingBatteryOptions();
     opt.seed = 3000 + static_cast<std::uint64_t>(n);
     // Unit weights: sum over alpha != 0 of U_alpha U_alpha = prod_n (1 + cos d_n) - 1.
     opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector&) {
@@ -144,7 +145,7 @@ TEST(FeatureMapBattery, Friction) {
       options.sigma_f = 0.05;
       options.shared_offset = shared;
       const FrictionFeatureMap map(n, options);
-      BatteryOptions opt;
+      BatteryOptions opt = CountingBatteryOptions();
       opt.seed = 4000 + static_cast<std::uint64_t>(n);
       opt.reference_kernel = [n, shared](const Vector& a, const Vector& b, const Vector&) {
         return RefFriction(a, b, n, 0.05, shared);
@@ -158,7 +159,7 @@ TEST(FeatureMapBattery, Motor) {
   for (int n : {1, 3}) {
     SCOPED_TRACE("N = " + std::to_string(n));
     const MotorFeatureMap map(n);
-    BatteryOptions opt;
+    BatteryOptions opt = CountingBatteryOptions();
     opt.seed = 5000 + static_cast<std::uint64_t>(n);
     opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector&) {
       return RefMotor(a, b, n);
@@ -171,7 +172,7 @@ TEST(FeatureMapBattery, PolPlusFriction) {
   const int n = 2;
   const SumFeatureMap map(
       {std::make_shared<PolFeatureMap>(n), std::make_shared<FrictionFeatureMap>(n, 0.1)});
-  BatteryOptions opt;
+  BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 6001;
   opt.shapes = LogSigmas({-0.5, 0.0, 1.0});
   opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector& s) {
@@ -184,7 +185,7 @@ TEST(FeatureMapBattery, MotorPlusFriction) {
   const int n = 3;
   const SumFeatureMap map(
       {std::make_shared<MotorFeatureMap>(n), std::make_shared<FrictionFeatureMap>(n, 0.02)});
-  BatteryOptions opt;
+  BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 6002;
   opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector&) {
     return RefMotor(a, b, n) + RefFriction(a, b, n, 0.02, true);
@@ -204,7 +205,7 @@ TEST(FeatureMapBattery, GravityFreePolPlusGravityBasis) {
                            std::make_shared<GravityBasisFeatureMap>(n, pol_prior)});
   EXPECT_EQ(map.dim(), PolFeatureDimension(n));
   ASSERT_EQ(map.shape_parameter_names(), (std::vector<std::string>{"log_sigma.0", "log_sigma.1"}));
-  BatteryOptions opt;
+  BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 6003;
   opt.shapes = {Vector::Constant(2, 0.3), (Vector(2) << -1.0, 1.2).finished()};
   opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector& s) {
@@ -217,7 +218,7 @@ TEST(FeatureMapBattery, GravityFreePolPlusGravityBasis) {
 
 TEST(FeatureMapBattery, Random) {
   const RandomFeatureMap map(5, 40, 3, 11);
-  BatteryOptions opt;
+  BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 7001;
   opt.reference_kernel = [&map](const Vector& a, const Vector& b, const Vector& s) {
     double k = 0.0;
@@ -231,10 +232,10 @@ TEST(FeatureMapBattery, Random) {
   };
   RunFeatureMapBattery(map, opt);
   // A robot-sized random map, and a sum with colliding block and shape names.
-  RunFeatureMapBattery(RandomFeatureMap(6, 100, 7, 12));
+  RunFeatureMapBattery(RandomFeatureMap(6, 100, 7, 12), CountingBatteryOptions());
   const SumFeatureMap twice({std::make_shared<RandomFeatureMap>(3, 10, 2, 1),
                              std::make_shared<RandomFeatureMap>(3, 20, 3, 2)});
-  RunFeatureMapBattery(twice);
+  RunFeatureMapBattery(twice, CountingBatteryOptions());
 }
 
 // ---- Pol: dimension, composition, block split, explicit values. ------------------------------

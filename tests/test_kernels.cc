@@ -20,11 +20,16 @@
 #include <Eigen/Eigenvalues>
 
 #include "alloc_counter.h"
+#include "structgp/feature/effect_feature_map.h"
+#include "structgp/feature/effects.h"
+#include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/random_feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
+#include "structgp/feature/sum_feature_map.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
+#include "structgp/kernel/sum_kernel.h"
 
 namespace structgp {
 namespace {
@@ -96,6 +101,22 @@ std::vector<KernelCase> AllKernels() {
                      Vector theta(3);
                      theta << 0.4, -0.3, 0.2;
                      return k->WithParameters(theta);
+                   }});
+  // What RobotModel builds for "rbf+fri" with an effect in function space: the base kernel
+  // plus the friction and effect features as a kernel.
+  cases.push_back({"sum_rbf_friction_cogging", [] {
+                     const RbfKernel rbf(6, /*ard=*/true, 0.9, 1.2);
+                     auto extras = std::make_shared<SumFeatureMap>(
+                         std::vector<std::shared_ptr<const FeatureMap>>{
+                             std::make_shared<FrictionFeatureMap>(2, 0.05),
+                             std::make_shared<EffectFeatureMap>(
+                                 2, MakeEffect("cogging", {{"period", 0.7}}),
+                                 std::vector<int>{1})});
+                     Hyperparameters h = DefaultHyperparameters(*extras, 2);
+                     h.log_block_scale << 0.3, -0.4;
+                     const FeatureKernel features(extras, h);
+                     return std::unique_ptr<Kernel>(
+                         std::make_unique<SumKernel>(std::vector<const Kernel*>{&rbf, &features}));
                    }});
   return cases;
 }
@@ -290,6 +311,31 @@ TEST(RbfsKernel, EqualsRbfOnTrigonometricTransform) {
   EXPECT_THROW(RbfsKernel(0), std::invalid_argument);
   // Clone keeps the type.
   EXPECT_NE(dynamic_cast<RbfsKernel*>(rbfs_ard.Clone().get()), nullptr);
+}
+
+// The sum is its parts' values added, and its gradient their gradients side by side.
+TEST(SumKernel, EqualsItsPartsAdded) {
+  const RbfKernel rbf(4, /*ard=*/false, 0.8, 1.3);
+  auto map = MakeRandomMap(4, 12, 2, 92);
+  const FeatureKernel features(map, DefaultHyperparameters(*map, 1));
+  const SumKernel sum(std::vector<const Kernel*>{&rbf, &features});
+  ASSERT_EQ(sum.num_parameters(), rbf.num_parameters() + features.num_parameters());
+  auto rng = SeededRng(6101);
+  Vector d_sum(sum.num_parameters()), d_rbf(rbf.num_parameters()),
+      d_features(features.num_parameters());
+  for (int trial = 0; trial < 5; ++trial) {
+    const Vector a = RandomVector(4, 1.0, &rng);
+    const Vector b = RandomVector(4, 1.0, &rng);
+    EXPECT_EQ(sum.Evaluate(a, b), rbf.Evaluate(a, b) + features.Evaluate(a, b));
+    sum.Gradient(a, b, d_sum);
+    rbf.Gradient(a, b, d_rbf);
+    features.Gradient(a, b, d_features);
+    EXPECT_TRUE(d_sum.head(rbf.num_parameters()) == d_rbf);
+    EXPECT_TRUE(d_sum.tail(features.num_parameters()) == d_features);
+  }
+  const RbfKernel other(5, false);
+  EXPECT_THROW(SumKernel(std::vector<const Kernel*>{&rbf, &other}), std::invalid_argument);
+  EXPECT_THROW(SumKernel(std::vector<const Kernel*>{}), std::invalid_argument);
 }
 
 TEST(FeatureKernel, EqualsWeightedFeatureProduct) {

@@ -19,7 +19,7 @@
 #include <thread>
 #include <vector>
 
-#include "feature_map_battery.h"
+#include "battery_options.h"
 #include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
@@ -33,6 +33,7 @@ namespace structgp {
 namespace {
 
 using testing::BatteryOptions;
+using testing::CountingBatteryOptions;
 using testing::RandomStates;
 using testing::RunFeatureMapBattery;
 
@@ -70,7 +71,7 @@ TEST(NystromFeatureMap, BatteryWithPolKernel) {
   EXPECT_EQ(map.dim(), 40);
   EXPECT_EQ(map.input_dim(), 6);
   EXPECT_EQ(map.jitter_steps(), 0);
-  BatteryOptions options;
+  BatteryOptions options = CountingBatteryOptions();
   options.reference_kernel = [&](const Vector& a, const Vector& b, const Vector&) {
     return NystromKernel(kernel, Z, map.jitter(), a, b);
   };
@@ -87,7 +88,7 @@ TEST(NystromFeatureMap, BatteryWithRbfKernelAndRandomSubset) {
   io.seed = 3;
   const Matrix Z = SelectInducingStates(kernel, RandomStates(4, 200, kCandidateSeed), 30, io);
   const NystromFeatureMap map(kernel, Z);
-  BatteryOptions options;
+  BatteryOptions options = CountingBatteryOptions();
   options.reference_kernel = [&](const Vector& a, const Vector& b, const Vector&) {
     return NystromKernel(kernel, Z, map.jitter(), a, b);
   };
@@ -105,7 +106,7 @@ TEST(NystromFeatureMap, BatteryWithFeatureKernelAndPerThreadKernels) {
   io.selection = InducingSelection::kFarthestPoint;
   const Matrix Z = SelectInducingStates(kernel, RandomStates(6, 200, kCandidateSeed), 30, io);
   const NystromFeatureMap map(kernel, Z);
-  BatteryOptions options;
+  BatteryOptions options = CountingBatteryOptions();
   options.num_threads = 0;
   options.reference_kernel = [&](const Vector& a, const Vector& b, const Vector&) {
     return NystromKernel(kernel, Z, map.jitter(), a, b);

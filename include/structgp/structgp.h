@@ -5,6 +5,8 @@
 /// Umbrella header: the whole public API of the structgp library (not the simulator, which
 /// is the separate structgp_sim target with headers under structgp/sim/). Including the one
 /// header a program needs is cheaper to compile; this one is for convenience.
+/// Not included: structgp/testing/ (test utilities for your own feature maps; they need
+/// GoogleTest).
 
 // Core: status codes, matrix types, input checks.
 #include "structgp/core/status.h"
@@ -21,6 +23,8 @@
 #include "structgp/feature/gravity_basis_feature_map.h"
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/motor_feature_map.h"
+#include "structgp/feature/effect_parameter.h"
+#include "structgp/feature/effect_residual.h"
 #include "structgp/feature/effect.h"
 #include "structgp/feature/effects.h"
 #include "structgp/feature/effect_feature_map.h"

@@ -17,6 +17,7 @@
 #include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/feature/feature_hyperparameters.h"
+#include "structgp/internal/cholesky.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 
@@ -84,9 +85,14 @@ std::vector<Concentration> Concentrations(const Vector& r, const Matrix& vars,
   return out;
 }
 
+// The evidence gains are those of these exact precisions: the library's factorisation without
+// jitter (internal/cholesky.h).
+const internal::CholeskyOptions kExactFactorisation{internal::JitterLadder::kNone,
+                                                    internal::JitterScale::kDiagonal, 0.0};
+
 // One fit of the base columns B on some statistics, kept to score candidates.
 struct BaseFit {
-  Eigen::LLT<Matrix> llt;  // of A_B
+  internal::Cholesky llt;  // of A_B
   Matrix W;                // A_B^{-1} b_B (|B| x P)
   bool ok = false;
 };
@@ -96,8 +102,7 @@ BaseFit FitBase(const Matrix& G, const Matrix& cross, const Index& B, const Vect
   BaseFit fit;
   Matrix A = G(B, B);
   for (size_t i = 0; i < B.size(); ++i) A(i, i) += s2n / lambda[B[i]];
-  fit.llt.compute(A);
-  if (fit.llt.info() != Eigen::Success) return fit;
+  if (fit.llt.Factorize(A, kExactFactorisation).status != Status::kOk) return fit;
   fit.W = fit.llt.solve(Matrix(cross(B, Eigen::all)));
   fit.ok = fit.W.allFinite();
   return fit;
@@ -105,7 +110,7 @@ BaseFit FitBase(const Matrix& G, const Matrix& cross, const Index& B, const Vect
 
 // Adds the columns E to a base fit: Z (Schur complement), u, and the new weights.
 struct Augmented {
-  Eigen::LLT<Matrix> z;
+  internal::Cholesky z;
   Matrix u;    // |E| x P
   Matrix V;    // L^{-1} G(B, E)
   bool ok = false;
@@ -119,8 +124,7 @@ Augmented Augment(const BaseFit& base, const Matrix& G, const Matrix& cross, con
   Matrix Z = G(E, E);
   for (size_t i = 0; i < E.size(); ++i) Z(i, i) += s2n / lambda[E[i]];
   Z.noalias() -= a.V.transpose() * a.V;
-  a.z.compute(Z);
-  if (a.z.info() != Eigen::Success) return a;
+  if (a.z.Factorize(Z, kExactFactorisation).status != Status::kOk) return a;
   a.u = Matrix(cross(E, Eigen::all)) - GBE.transpose() * base.W;
   a.ok = a.u.allFinite();
   return a;

@@ -1,6 +1,5 @@
 #include "structgp/kernel/nystrom_feature_map.h"
 
-#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -11,7 +10,10 @@
 #include <vector>
 
 #include "feature/trig_tensor.h"
+#include "structgp/core/status.h"
 #include "structgp/core/validate.h"
+#include "structgp/internal/cholesky.h"
+#include "structgp/internal/gram.h"
 #include "structgp/kernel/pol_kernel.h"
 
 namespace structgp {
@@ -140,37 +142,30 @@ NystromFeatureMap::NystromFeatureMap(const Kernel& kernel, const ConstMatrixRef&
   RequireSize("NystromFeatureMap Z", Z.cols(), kernel.input_dim(), "columns");
   RequireFinite("NystromFeatureMap Z", Z);
   inducing_ = Z.transpose();
-  const Eigen::Index M = Z.rows();
-  Matrix K(M, M);
-  for (Eigen::Index j = 0; j < M; ++j) {
-    for (Eigen::Index i = j; i < M; ++i) {
-      K(i, j) = kernel_->Evaluate(inducing_.col(i), inducing_.col(j));
-      K(j, i) = K(i, j);
-    }
-  }
+  Matrix K;
+  internal::KernelGram(*kernel_, inducing_, &K);
   if (!K.allFinite()) {
     throw std::runtime_error(
         "NystromFeatureMap: the kernel returned NaN/Inf on the inducing states");
   }
-  const double mean_diagonal = std::max(K.diagonal().mean(), std::numeric_limits<double>::min());
-  double jitter = kNystromRelativeJitter * mean_diagonal;
-  for (int step = 0; step <= kNystromMaxJitterSteps; ++step, jitter *= 10.0) {
-    Matrix A = K;
-    A.diagonal().array() += jitter;
-    Eigen::LLT<Matrix, Eigen::Lower> llt(A);
-    if (llt.info() != Eigen::Success) continue;
-    Matrix L = llt.matrixL();
-    if (!L.allFinite() || !(L.diagonal().array() > 0.0).all()) continue;
-    factor_ = std::move(L);
-    jitter_ = jitter;
-    jitter_steps_ = step;
-    InitPolFastPath();
-    return;
+  // The library's factorisation (internal/cholesky.h) with a jitter proportional to the
+  // identity, so that the features are those of K_ZZ + jitter I: always at least
+  // kNystromRelativeJitter of the mean diagonal, then the ladder's larger rungs.
+  internal::CholeskyOptions options;
+  options.scale = internal::JitterScale::kMeanDiagonal;
+  options.min_jitter = kNystromRelativeJitter;
+  internal::Cholesky llt;
+  const internal::CholeskyResult result = llt.Factorize(K, options);
+  if (result.status != Status::kOk) {
+    throw std::runtime_error(
+        "NystromFeatureMap: K_ZZ + jitter I is not positive definite even with jitter " +
+        std::to_string(result.jitter * internal::MeanDiagonal(K)) +
+        " (the kernel is not positive semi-definite on these states?)");
   }
-  throw std::runtime_error(
-      "NystromFeatureMap: K_ZZ + jitter I is not positive definite even with jitter " +
-      std::to_string(jitter / 10.0) +
-      " (the kernel is not positive semi-definite on these states?)");
+  factor_ = llt.ReleaseFactor();
+  jitter_ = result.jitter * internal::MeanDiagonal(K);
+  jitter_steps_ = result.steps;
+  InitPolFastPath();
 }
 
 void NystromFeatureMap::InitPolFastPath() {

@@ -1,17 +1,9 @@
 #include "model/factor_kernels.h"
 
 #include <cmath>
-#include <cstring>
 
-// GCC/Clang function multi-versioning: an AVX2+FMA clone and the baseline, dispatched once at
-// load time. Disabled under sanitizers and on non-x86 targets.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__) && \
-    !defined(__SANITIZE_THREAD__) && !defined(STRUCTGP_NO_TARGET_CLONES)
-#define STRUCTGP_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define STRUCTGP_CLONES
-#endif
-#define STRUCTGP_INLINE inline __attribute__((always_inline))
+#include "structgp/internal/simd.h"
+
 #ifndef STRUCTGP_CARLSON_BLOCK
 #define STRUCTGP_CARLSON_BLOCK 2
 #endif
@@ -20,62 +12,56 @@ namespace structgp {
 namespace internal {
 namespace {
 
-// Four doubles, unaligned. GCC/Clang vector extensions: one AVX register in the AVX2 clone,
-// two SSE registers in the baseline one. Plain loops with reductions do not vectorise well
-// here (the reduction lanes end up in memory), so the four-lane arithmetic is written out.
-typedef double V4 __attribute__((vector_size(32), aligned(8)));
-
-STRUCTGP_INLINE V4 Load(const double* p) {
-  V4 v;
-  std::memcpy(&v, p, sizeof(v));
-  return v;
-}
-STRUCTGP_INLINE void Store(double* p, V4 v) { std::memcpy(p, &v, sizeof(v)); }
-STRUCTGP_INLINE V4 Splat(double x) { return V4{x, x, x, x}; }
-STRUCTGP_INLINE double Sum(V4 v) { return (v[0] + v[1]) + (v[2] + v[3]); }
+// Plain loops with reductions do not vectorise well here (the reduction lanes end up in
+// memory), so the four-lane arithmetic is written out with the helpers of internal/simd.h.
+using simd::Load4;
+using simd::Packet4;
+using simd::Splat4;
+using simd::Store4;
+using simd::SumPairs;
 
 // Four columns j0..j0+3 at once over rows [0, j0) (j0 is a multiple of 4): eight independent
 // accumulators keep the FMA pipes busy, and x1, x2 are loaded once for four columns.
 template <bool kTwo>
-STRUCTGP_INLINE void Project4(const double* S, int ld, int j0, const double* x1,
-                              const double* x2, double* y1, double* y2) {
+STRUCTGP_ALWAYS_INLINE void Project4(const double* S, int ld, int j0, const double* x1,
+                                     const double* x2, double* y1, double* y2) {
   const double* c0 = S + static_cast<long>(j0) * ld;
   const double* c1 = c0 + ld;
   const double* c2 = c1 + ld;
   const double* c3 = c2 + ld;
-  V4 p0 = Splat(0), p1 = Splat(0), p2 = Splat(0), p3 = Splat(0);
-  V4 q0 = Splat(0), q1 = Splat(0), q2 = Splat(0), q3 = Splat(0);
+  Packet4 p0 = Splat4(0), p1 = Splat4(0), p2 = Splat4(0), p3 = Splat4(0);
+  Packet4 q0 = Splat4(0), q1 = Splat4(0), q2 = Splat4(0), q3 = Splat4(0);
   for (int i = 0; i < j0; i += 4) {
-    const V4 a = Load(x1 + i);
-    const V4 u0 = Load(c0 + i), u1 = Load(c1 + i), u2 = Load(c2 + i), u3 = Load(c3 + i);
+    const Packet4 a = Load4(x1 + i);
+    const Packet4 u0 = Load4(c0 + i), u1 = Load4(c1 + i), u2 = Load4(c2 + i), u3 = Load4(c3 + i);
     p0 += u0 * a;
     p1 += u1 * a;
     p2 += u2 * a;
     p3 += u3 * a;
     if (kTwo) {
-      const V4 b = Load(x2 + i);
+      const Packet4 b = Load4(x2 + i);
       q0 += u0 * b;
       q1 += u1 * b;
       q2 += u2 * b;
       q3 += u3 * b;
     }
   }
-  y1[j0] = Sum(p0);
-  y1[j0 + 1] = Sum(p1);
-  y1[j0 + 2] = Sum(p2);
-  y1[j0 + 3] = Sum(p3);
+  y1[j0] = SumPairs(p0);
+  y1[j0 + 1] = SumPairs(p1);
+  y1[j0 + 2] = SumPairs(p2);
+  y1[j0 + 3] = SumPairs(p3);
   if (kTwo) {
-    y2[j0] = Sum(q0);
-    y2[j0 + 1] = Sum(q1);
-    y2[j0 + 2] = Sum(q2);
-    y2[j0 + 3] = Sum(q3);
+    y2[j0] = SumPairs(q0);
+    y2[j0 + 1] = SumPairs(q1);
+    y2[j0 + 2] = SumPairs(q2);
+    y2[j0 + 3] = SumPairs(q3);
   }
 }
 
 // Adds the rows [row0, j] of column j to y1[j] (and y2[j]).
 template <bool kTwo>
-STRUCTGP_INLINE void ProjectTail(const double* S, int ld, int row0, int j, const double* x1,
-                                 const double* x2, double* y1, double* y2) {
+STRUCTGP_ALWAYS_INLINE void ProjectTail(const double* S, int ld, int row0, int j, const double* x1,
+                                        const double* x2, double* y1, double* y2) {
   const double* col = S + static_cast<long>(j) * ld;
   double p = 0, q = 0;
   for (int i = row0; i <= j; ++i) {
@@ -87,8 +73,9 @@ STRUCTGP_INLINE void ProjectTail(const double* S, int ld, int row0, int j, const
 }
 
 template <bool kTwo>
-STRUCTGP_INLINE void UpperTransposeTimesImpl(const double* S, int ld, int D, const double* x1,
-                                             const double* x2, double* y1, double* y2) {
+STRUCTGP_ALWAYS_INLINE void UpperTransposeTimesImpl(const double* S, int ld, int D,
+                                                    const double* x1, const double* x2, double* y1,
+                                                    double* y2) {
   int j0 = 0;
   for (; j0 + 4 <= D; j0 += 4) {
     Project4<kTwo>(S, ld, j0, x1, x2, y1, y2);
@@ -104,9 +91,9 @@ STRUCTGP_INLINE void UpperTransposeTimesImpl(const double* S, int ld, int D, con
 // Carlson's update of column j over rows [row0, j), then its diagonal; optionally the dot
 // products of the new column with x1, x2 over rows [row0, j] are added to y1[j], y2[j].
 template <bool kProject>
-STRUCTGP_INLINE void CarlsonColumn(double* S, int ld, int row0, int j, double a, double b,
-                                   double c, double* gain, const double* x1, const double* x2,
-                                   double* y1, double* y2) {
+STRUCTGP_ALWAYS_INLINE void CarlsonColumn(double* S, int ld, int row0, int j, double a, double b,
+                                          double c, double* gain, const double* x1,
+                                          const double* x2, double* y1, double* y2) {
   double* col = S + static_cast<long>(j) * ld;
   double p = 0, q = 0;
   for (int i = row0; i < j; ++i) {
@@ -131,50 +118,51 @@ STRUCTGP_INLINE void CarlsonColumn(double* S, int ld, int row0, int j, double a,
 // register across the C columns; with kProject, the new columns' dot products with x1 and x2
 // over those rows go to y1, y2.
 template <int C, bool kProject>
-STRUCTGP_INLINE void CarlsonBlock(double* S, int ld, int j0, int rows, const double* a,
-                                  const double* b, const double* c, double* gain,
-                                  const double* x1, const double* x2, double* y1, double* y2) {
+STRUCTGP_ALWAYS_INLINE void CarlsonBlock(double* S, int ld, int j0, int rows, const double* a,
+                                         const double* b, const double* c, double* gain,
+                                         const double* x1, const double* x2, double* y1,
+                                         double* y2) {
   double* col[C];
-  V4 va[C], vb[C], vk[C], p[C], q[C];
+  Packet4 va[C], vb[C], vk[C], p[C], q[C];
   for (int t = 0; t < C; ++t) {
     col[t] = S + static_cast<long>(j0 + t) * ld;
-    va[t] = Splat(a[j0 + t]);
-    vb[t] = Splat(b[j0 + t]);
-    vk[t] = Splat(c[j0 + t]);
-    p[t] = q[t] = Splat(0);
+    va[t] = Splat4(a[j0 + t]);
+    vb[t] = Splat4(b[j0 + t]);
+    vk[t] = Splat4(c[j0 + t]);
+    p[t] = q[t] = Splat4(0);
   }
   for (int i = 0; i < rows; i += 4) {
-    V4 g = Load(gain + i);
-    V4 xa = Splat(0), xb = Splat(0);
+    Packet4 g = Load4(gain + i);
+    Packet4 xa = Splat4(0), xb = Splat4(0);
     if (kProject) {
-      xa = Load(x1 + i);
-      xb = Load(x2 + i);
+      xa = Load4(x1 + i);
+      xb = Load4(x2 + i);
     }
     for (int t = 0; t < C; ++t) {
-      const V4 u = Load(col[t] + i);
-      const V4 nu = va[t] * u - vb[t] * g;
+      const Packet4 u = Load4(col[t] + i);
+      const Packet4 nu = va[t] * u - vb[t] * g;
       g += vk[t] * u;
-      Store(col[t] + i, nu);
+      Store4(col[t] + i, nu);
       if (kProject) {
         p[t] += nu * xa;
         q[t] += nu * xb;
       }
     }
-    Store(gain + i, g);
+    Store4(gain + i, g);
   }
   if (kProject) {
     for (int t = 0; t < C; ++t) {
-      y1[j0 + t] = Sum(p[t]);
-      y2[j0 + t] = Sum(q[t]);
+      y1[j0 + t] = SumPairs(p[t]);
+      y2[j0 + t] = SumPairs(q[t]);
     }
   }
 }
 
 template <bool kProject>
-STRUCTGP_INLINE void CarlsonRankOneImpl(double* S, int ld, int D, const double* a,
-                                        const double* b, const double* c, double* gain,
-                                        const double* x1, const double* x2, double* y1,
-                                        double* y2) {
+STRUCTGP_ALWAYS_INLINE void CarlsonRankOneImpl(double* S, int ld, int D, const double* a,
+                                               const double* b, const double* c, double* gain,
+                                               const double* x1, const double* x2, double* y1,
+                                               double* y2) {
   // Blocks of kBlock columns; the rows above a block that are a multiple of 4 go through the
   // vector loop, the few rows left and the block's own triangle column by column.
   constexpr int kBlock = STRUCTGP_CARLSON_BLOCK;
@@ -196,7 +184,7 @@ STRUCTGP_INLINE void CarlsonRankOneImpl(double* S, int ld, int D, const double* 
 
 }  // namespace
 
-STRUCTGP_CLONES
+STRUCTGP_TARGET_CLONES
 void UpperTransposeTimes(const double* S, int ld, int D, const double* x1, const double* x2,
                          double* y1, double* y2) {
   if (x2 == nullptr) {
@@ -228,7 +216,7 @@ void CarlsonCoefficients(const double* f, int D, double r, double scale, double*
   }
 }
 
-STRUCTGP_CLONES
+STRUCTGP_TARGET_CLONES
 void CarlsonRankOne(double* S, int ld, int D, const double* a, const double* b, const double* c,
                     double* gain, const double* x1, const double* x2, double* y1, double* y2) {
   if (x1 == nullptr) {

@@ -2,39 +2,23 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
 
-#include <Eigen/Cholesky>
-
 #include "structgp/core/validate.h"
+#include "structgp/internal/cholesky.h"
+#include "structgp/internal/gram.h"
+#include "structgp/internal/simd.h"
 
-// The hot loops below are forward substitutions over the packed factor. They are written
-// with GCC/Clang vector extensions (4 doubles per vector) so that the compiler emits packed
-// SSE2 code in the baseline build and AVX2/FMA code in a second clone chosen at load time
-// (function multi-versioning), without imposing -march flags on anyone. Disabled under
-// sanitizers and outside x86-64.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__) && \
-    !defined(__SANITIZE_THREAD__) && !defined(STRUCTGP_NO_TARGET_CLONES)
-#define STRUCTGP_KERNEL_GP_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define STRUCTGP_KERNEL_GP_CLONES
-#endif
+// The hot loops below are forward substitutions over the packed factor, written with the
+// four-lane vectors of internal/simd.h so that the compiler emits packed SSE2 code in the
+// baseline build and AVX2/FMA code in the clone chosen at load time (STRUCTGP_TARGET_CLONES).
 
 namespace structgp {
 namespace {
 
 constexpr double kLog2Pi = 1.8378770664093454836;  // log(2 pi)
-
-#if defined(__GNUC__)
-#define STRUCTGP_ALWAYS_INLINE inline __attribute__((always_inline))
-// Four doubles with the alignment of one double, so loads from any row start are legal.
-typedef double Packet4 __attribute__((vector_size(32), aligned(8)));
-#else
-#define STRUCTGP_ALWAYS_INLINE inline
-#endif
 
 // Distance, in doubles, at which the row being read is prefetched. The passes read the packed
 // factor strictly sequentially and the hardware prefetcher follows, but on a Zen 3 machine an
@@ -47,18 +31,21 @@ constexpr int kPrefetchDoubles = 512;
 // value computed by different routines (a one- or two-right-hand-side solve, the new row of
 // AddAndPredict) is therefore bit-identical, which makes AddAndPredict equal to Add followed
 // by a prediction.
-#if defined(__GNUC__)
+#if defined(STRUCTGP_HAVE_PACKET4)
+using internal::simd::Load4;
+using internal::simd::Packet4;
+using internal::simd::SumHalves;
+
 STRUCTGP_ALWAYS_INLINE double Dot1(const double* r, const double* a, int n) {
-  Packet4 s0 = {0.0, 0.0, 0.0, 0.0};
+  Packet4 s0 = internal::simd::Splat4(0.0);
   Packet4 s1 = s0;
   int j = 0;
   for (; j + 8 <= n; j += 8) {
     __builtin_prefetch(r + j + kPrefetchDoubles, 0, 3);
-    Packet4 r0, r1, a0, a1;
-    std::memcpy(&r0, r + j, sizeof(r0));
-    std::memcpy(&r1, r + j + 4, sizeof(r1));
-    std::memcpy(&a0, a + j, sizeof(a0));
-    std::memcpy(&a1, a + j + 4, sizeof(a1));
+    const Packet4 r0 = Load4(r + j);
+    const Packet4 r1 = Load4(r + j + 4);
+    const Packet4 a0 = Load4(a + j);
+    const Packet4 a1 = Load4(a + j + 4);
     s0 += r0 * a0;
     s1 += r1 * a1;
   }
@@ -71,35 +58,33 @@ STRUCTGP_ALWAYS_INLINE double Dot1(const double* r, const double* a, int n) {
     a_tail[t] = a[j + t];
   }
   {
-    Packet4 r0, r1, a0, a1;
-    std::memcpy(&r0, r_tail, sizeof(r0));
-    std::memcpy(&r1, r_tail + 4, sizeof(r1));
-    std::memcpy(&a0, a_tail, sizeof(a0));
-    std::memcpy(&a1, a_tail + 4, sizeof(a1));
+    const Packet4 r0 = Load4(r_tail);
+    const Packet4 r1 = Load4(r_tail + 4);
+    const Packet4 a0 = Load4(a_tail);
+    const Packet4 a1 = Load4(a_tail + 4);
     s0 += r0 * a0;
     s1 += r1 * a1;
   }
   const Packet4 s = s0 + s1;
-  return (s[0] + s[2]) + (s[1] + s[3]);
+  return SumHalves(s);
 }
 
 // Dot1(r, a, n) and Dot1(r, b, n) with one read of r.
 STRUCTGP_ALWAYS_INLINE void Dot2(const double* r, const double* a, const double* b, int n,
                                  double* dot_a, double* dot_b) {
-  Packet4 sa0 = {0.0, 0.0, 0.0, 0.0};
+  Packet4 sa0 = internal::simd::Splat4(0.0);
   Packet4 sa1 = sa0;
   Packet4 sb0 = sa0;
   Packet4 sb1 = sa0;
   int j = 0;
   for (; j + 8 <= n; j += 8) {
     __builtin_prefetch(r + j + kPrefetchDoubles, 0, 3);
-    Packet4 r0, r1, a0, a1, b0, b1;
-    std::memcpy(&r0, r + j, sizeof(r0));
-    std::memcpy(&r1, r + j + 4, sizeof(r1));
-    std::memcpy(&a0, a + j, sizeof(a0));
-    std::memcpy(&a1, a + j + 4, sizeof(a1));
-    std::memcpy(&b0, b + j, sizeof(b0));
-    std::memcpy(&b1, b + j + 4, sizeof(b1));
+    const Packet4 r0 = Load4(r + j);
+    const Packet4 r1 = Load4(r + j + 4);
+    const Packet4 a0 = Load4(a + j);
+    const Packet4 a1 = Load4(a + j + 4);
+    const Packet4 b0 = Load4(b + j);
+    const Packet4 b1 = Load4(b + j + 4);
     sa0 += r0 * a0;
     sa1 += r1 * a1;
     sb0 += r0 * b0;
@@ -114,13 +99,12 @@ STRUCTGP_ALWAYS_INLINE void Dot2(const double* r, const double* a, const double*
     b_tail[t] = b[j + t];
   }
   {
-    Packet4 r0, r1, a0, a1, b0, b1;
-    std::memcpy(&r0, r_tail, sizeof(r0));
-    std::memcpy(&r1, r_tail + 4, sizeof(r1));
-    std::memcpy(&a0, a_tail, sizeof(a0));
-    std::memcpy(&a1, a_tail + 4, sizeof(a1));
-    std::memcpy(&b0, b_tail, sizeof(b0));
-    std::memcpy(&b1, b_tail + 4, sizeof(b1));
+    const Packet4 r0 = Load4(r_tail);
+    const Packet4 r1 = Load4(r_tail + 4);
+    const Packet4 a0 = Load4(a_tail);
+    const Packet4 a1 = Load4(a_tail + 4);
+    const Packet4 b0 = Load4(b_tail);
+    const Packet4 b1 = Load4(b_tail + 4);
     sa0 += r0 * a0;
     sa1 += r1 * a1;
     sb0 += r0 * b0;
@@ -128,8 +112,8 @@ STRUCTGP_ALWAYS_INLINE void Dot2(const double* r, const double* a, const double*
   }
   const Packet4 sa = sa0 + sa1;
   const Packet4 sb = sb0 + sb1;
-  *dot_a = (sa[0] + sa[2]) + (sa[1] + sa[3]);
-  *dot_b = (sb[0] + sb[2]) + (sb[1] + sb[3]);
+  *dot_a = SumHalves(sa);
+  *dot_b = SumHalves(sb);
 }
 #else
 STRUCTGP_ALWAYS_INLINE double Dot1(const double* r, const double* a, int n) {
@@ -145,12 +129,12 @@ STRUCTGP_ALWAYS_INLINE void Dot2(const double* r, const double* a, const double*
 #endif
 
 // x^T y over n entries, in the order of Dot1.
-STRUCTGP_KERNEL_GP_CLONES
+STRUCTGP_TARGET_CLONES
 double Dot(const double* x, const double* y, int n) { return Dot1(x, y, n); }
 
 // In place a <- L^{-1} a over the first m rows of the packed factor (dot-product form: row i
 // is one contiguous read). One pass over m (m + 1) / 2 doubles.
-STRUCTGP_KERNEL_GP_CLONES
+STRUCTGP_TARGET_CLONES
 void PackedForwardSolve(const double* packed, int m, double* a) {
   const double* r = packed;
   for (int i = 0; i < m; ++i) {
@@ -161,7 +145,7 @@ void PackedForwardSolve(const double* packed, int m, double* a) {
 
 // In place a <- L^{-1} a and b <- L^{-1} b with one pass over the packed factor; each result
 // is bit-identical to PackedForwardSolve's.
-STRUCTGP_KERNEL_GP_CLONES
+STRUCTGP_TARGET_CLONES
 void PackedForwardSolve2(const double* packed, int m, double* a, double* b) {
   const double* r = packed;
   for (int i = 0; i < m; ++i) {
@@ -175,9 +159,9 @@ void PackedForwardSolve2(const double* packed, int m, double* a, double* b) {
 }
 
 // True when the squared pivot d2 of a row whose diagonal entry of K + sigma_n^2 I is
-// `diagonal` is accepted (false for NaN too).
+// `diagonal` is accepted (false for NaN too): the acceptance test of internal/cholesky.h.
 bool PivotOk(double d2, double diagonal) {
-  return d2 > kMinRelativePivot * diagonal && std::isfinite(d2);
+  return d2 >= kMinRelativePivot * diagonal && std::isfinite(d2);
 }
 
 }  // namespace
@@ -239,19 +223,18 @@ Status KernelGP::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   RequireFinite("KernelGP::Fit Y", Y);
   const int m = static_cast<int>(X.rows());
 
-  // C = K + sigma_n^2 I, lower triangle, with the argument order of Add (earlier point first).
+  // C = K + sigma_n^2 I, with the argument order of Add (earlier point first).
   const Matrix points = X.transpose();
-  Matrix C = Matrix::Zero(m, m);
-  for (int i = 0; i < m; ++i) {
-    for (int j = 0; j < i; ++j) C(i, j) = kernel_->Evaluate(points.col(j), points.col(i));
-    C(i, i) = kernel_->Evaluate(points.col(i), points.col(i)) + noise_variance_;
-  }
-  const Eigen::LLT<Matrix, Eigen::Lower> llt(C);
-  if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
-  const Matrix& factor = llt.matrixLLT();  // lower triangle is L
-  for (int i = 0; i < m; ++i) {
-    if (!PivotOk(factor(i, i) * factor(i, i), C(i, i))) return Status::kNotPositiveDefinite;
-  }
+  Matrix C;
+  internal::KernelGram(*kernel_, points, &C);
+  C.diagonal().array() += noise_variance_;
+  // The library's factorisation without jitter (the model is the exact posterior): its pivot
+  // test is the one Add applies to a new point (PivotOk).
+  internal::CholeskyOptions options;
+  options.ladder = internal::JitterLadder::kNone;
+  internal::Cholesky llt(m);
+  if (llt.Factorize(C, options).status != Status::kOk) return Status::kNotPositiveDefinite;
+  const Matrix& factor = llt.factor();  // lower triangle is L
   const Matrix beta = llt.matrixL().solve(Y);
   // Targets of absurd (finite) magnitude can overflow the solve: refuse rather than store inf.
   if (!beta.allFinite()) return Status::kNotPositiveDefinite;

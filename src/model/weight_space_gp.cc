@@ -6,8 +6,6 @@
 #include <string>
 #include <utility>
 
-#include <Eigen/Cholesky>
-
 #include "model/factor_kernels.h"
 #include "structgp/core/validate.h"
 
@@ -127,27 +125,16 @@ Status WeightSpaceGP::Fit(const SufficientStatistics& stats, FitJitter jitter_po
   const Eigen::Index D = num_features();
   Matrix A = stats.gram.triangularView<Eigen::Lower>();
   A.diagonal() += noise_variance_ * prior_variance_.cwiseInverse();
-  // The jitter ladder of the header: accept the factor when every pivot keeps a fraction
-  // kMinPivotRatio of its own diagonal entry, else factorise A + delta diag(A), delta growing.
-  const Vector diag = A.diagonal();
-  if (!diag.allFinite() || !stats.cross.allFinite()) return Status::kNotPositiveDefinite;
-  Eigen::LLT<Matrix, Eigen::Lower> llt;
-  double jitter = 0.0;
-  for (int step = 0;; ++step) {
-    llt.compute(A);
-    if (llt.info() == Eigen::Success) {
-      const auto pivots = llt.matrixLLT().diagonal();
-      if (pivots.allFinite() &&
-          (pivots.array().square() >= kMinPivotRatio * diag.array()).all()) {
-        break;
-      }
-    }
-    if (step == kMaxJitterSteps || jitter_policy == FitJitter::kNone) {
-      return Status::kNotPositiveDefinite;
-    }
-    jitter = step == 0 ? kJitterFirst : jitter * kJitterGrowth;
-    A.diagonal() = (1.0 + jitter) * diag;
-  }
+  // The jitter ladder of the header (internal/cholesky.h): relative to diag(A), so that the
+  // policy does not depend on the units of the features.
+  if (!stats.cross.allFinite()) return Status::kNotPositiveDefinite;
+  internal::CholeskyOptions options;
+  options.scale = internal::JitterScale::kDiagonal;
+  options.ladder = jitter_policy == FitJitter::kNone ? internal::JitterLadder::kNone
+                                                     : internal::JitterLadder::kClimb;
+  internal::Cholesky llt(D);
+  const internal::CholeskyResult factorisation = llt.Factorize(A, options);
+  if (factorisation.status != Status::kOk) return Status::kNotPositiveDefinite;
   // S = L^{-T}: invert the triangular factor, then transpose into the upper triangle.
   Matrix l_inv = Matrix::Identity(D, D);
   llt.matrixL().solveInPlace(l_inv);
@@ -163,7 +150,7 @@ Status WeightSpaceGP::Fit(const SufficientStatistics& stats, FitJitter jitter_po
   log_prior_broadening_ = 0.0;
   sample_count_ = stats.count;
   num_samples_ = static_cast<long>(stats.count);
-  fit_jitter_ = jitter;
+  fit_jitter_ = factorisation.jitter;
   RefreshHeadroom();
   return Status::kOk;
 }

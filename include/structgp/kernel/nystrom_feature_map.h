@@ -48,14 +48,14 @@
 
 namespace structgp {
 
-/// First jitter tried, relative to the mean diagonal of K_ZZ. The features stay bounded
+/// Jitter always added, relative to the mean diagonal of K_ZZ (a regularisation that is part of
+/// the features; when it is not enough, the library's jitter ladder continues with its larger
+/// rungs, 1e-7 and 1e-5: internal/cholesky.h, docs/reliability.md). The features stay bounded
 /// whatever the jitter (|phi(x)|^2 <= k(x, x)); the jitter only has to make the factorisation
 /// succeed when K_ZZ is singular to rounding (duplicate states, a finite-rank kernel with more
 /// inducing states than its rank). Rounding errors along K_ZZ's null directions,
 /// ~eps |K|, are amplified by at most 1 / sqrt(jitter): ~1e-12 relative at this level.
 inline constexpr double kNystromRelativeJitter = 1e-8;
-/// The ladder multiplies the jitter by 10 at most this many times before giving up.
-inline constexpr int kNystromMaxJitterSteps = 6;
 /// Largest number of joints of the specialised k_pol kernel column (its per-call trigonometric
 /// values live on the stack); larger robots use the generic path.
 inline constexpr int kMaxNystromFastPolJoints = 16;
@@ -99,8 +99,9 @@ Matrix SelectInducingStates(const Kernel& kernel, const ConstMatrixRef& X, int M
 class NystromFeatureMap : public FeatureMap {
  public:
   /// kernel: copied (Clone). Z: inducing states as rows (M x kernel.input_dim(), M >= 1,
-  /// finite). Factorises K_ZZ + jitter I with the jitter ladder (kNystromRelativeJitter times
-  /// 1, 10, ..., 10^kNystromMaxJitterSteps of the mean diagonal). O(M^2) kernel evaluations
+  /// finite). Factorises K_ZZ + jitter I, jitter = delta * mean(diag K_ZZ), with delta =
+  /// kNystromRelativeJitter, then the larger rungs of the library's ladder (1e-7, 1e-5) when
+  /// the factor is not accepted (internal/cholesky.h). O(M^2) kernel evaluations
   /// and O(M^3 / 3) flops. Throws std::invalid_argument on bad sizes or values, and
   /// std::runtime_error when even the largest jitter fails (the kernel is then not positive
   /// semi-definite on Z, or returned NaN).
@@ -125,7 +126,7 @@ class NystromFeatureMap : public FeatureMap {
   const Matrix& cholesky_factor() const { return factor_; }
   /// The jitter added to the diagonal of K_ZZ, absolute.
   double jitter() const { return jitter_; }
-  /// Rungs of the jitter ladder climbed (0: the first jitter worked).
+  /// Rungs of the jitter ladder climbed (0: kNystromRelativeJitter was enough).
   int jitter_steps() const { return jitter_steps_; }
   /// Whether Evaluate uses the specialised k_pol kernel column.
   bool uses_pol_fast_path() const { return pol_joints_ > 0; }

@@ -33,15 +33,17 @@
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
+#include "structgp/internal/cholesky.h"
 #include "structgp/kernel/kernel.h"
 
 namespace structgp {
 
 /// Smallest conditional variance d^2 = k(x,x) + sigma_n^2 - l^T l accepted when a point is
-/// added, relative to k(x,x) + sigma_n^2. Below it the new pivot is lost to rounding. Fit
-/// applies the same test to every pivot of its factorisation, so a data set is accepted by
-/// Fit exactly when adding its points one by one would be (up to rounding).
-inline constexpr double kMinRelativePivot = 1e-14;
+/// added, relative to k(x,x) + sigma_n^2: the pivot floor of the library's factorisation
+/// (internal/cholesky.h). Below it the new pivot is lost to rounding. Fit applies the same
+/// test to every pivot of its factorisation, without jitter, so a data set is accepted by Fit
+/// exactly when adding its points one by one would be (up to rounding).
+inline constexpr double kMinRelativePivot = internal::kMinPivotRatio;
 
 class KernelGP {
  public:

@@ -26,10 +26,13 @@ enum class BaseModel {
 /// "pol", "rbf", "rbfs", "motor".
 const char* ToString(BaseModel base);
 
+/// An effect as written: MakeEffect(name, params) builds it (feature/effects.h), checking the
+/// parameters against the effect's typed descriptions (EffectParameter) and filling in the
+/// defaults; ToString(EffectSpec) is text that parses back into the same spec.
 struct EffectSpec {
   std::string name;                      ///< as in EffectNames()
   std::vector<int> joints;               ///< 1-based; empty = every joint
-  std::map<std::string, double> params;  ///< e.g. {"period", 0.3}
+  std::map<std::string, double> params;  ///< as written, e.g. {"period", 0.3}
 };
 
 struct ModelSpec {
@@ -42,8 +45,10 @@ struct ModelSpec {
 /// Parses "pol", "pol+fri", ... Throws std::invalid_argument naming the bad part and listing
 /// what is accepted.
 ModelSpec ParseModelSpec(const std::string& model);
-/// Parses an effect list. Effect names are checked against the registry, parameters by the
-/// effect's own factory. Errors name the item and its character position (1-based).
+/// Parses an effect list. Effect names are checked against the registry, parameters against
+/// the effect's parameter descriptions (MakeEffect). Errors name the item and its character
+/// position (1-based), e.g. "effect list 'cogging@1:period=-1', character 1: effect 'cogging':
+/// parameter 'period' expected in [1e-06, 1e+06] rad, got -1".
 std::vector<EffectSpec> ParseEffectList(const std::string& text);
 
 /// Canonical text of a model ("pol+fri") and of an effect list (round-trips through the

@@ -72,6 +72,7 @@
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
+#include "structgp/internal/cholesky.h"
 #include "structgp/model/sufficient_statistics.h"
 
 namespace structgp {
@@ -81,18 +82,21 @@ namespace structgp {
 /// be indefinite; the downdate is refused instead.
 inline constexpr double kMinDowndateMargin = 1e-10;
 
-/// A batch factorisation is accepted when every pivot satisfies L_kk^2 >= kMinPivotRatio A_kk:
-/// L_kk^2 / A_kk is the part of feature k's precision not explained by the features before it;
-/// below ~1e-13 (a few hundred eps) it is rounding error and the factor would be mostly noise.
-inline constexpr double kMinPivotRatio = 1e-13;
+/// The acceptance test and the jitter ladder of Fit are the library's one positive-definite
+/// factorisation policy (internal/cholesky.h, docs/reliability.md); their constants, under the
+/// names this header has always given them:
+/// a batch factorisation is accepted when every pivot satisfies L_kk^2 >= kMinPivotRatio A_kk
+/// (L_kk^2 / A_kk is the part of feature k's precision not explained by the features before
+/// it; below ~1e-13, a few hundred eps, it is rounding error and the factor mostly noise).
+inline constexpr double kMinPivotRatio = internal::kMinPivotRatio;
 /// First relative jitter of Fit's ladder (A + delta diag(A)): a hundred times the pivot floor,
 /// so that the first step normally succeeds.
-inline constexpr double kJitterFirst = 1e-11;
+inline constexpr double kJitterFirst = internal::kJitterFirst;
 /// Factor between consecutive jitters of the ladder.
-inline constexpr double kJitterGrowth = 100.0;
+inline constexpr double kJitterGrowth = internal::kJitterGrowth;
 /// Number of jitter steps before Fit gives up: the largest jitter is
 /// kJitterFirst * kJitterGrowth^(kMaxJitterSteps - 1) = 1e-5 (relative to diag(A)).
-inline constexpr int kMaxJitterSteps = 4;
+inline constexpr int kMaxJitterSteps = internal::kMaxJitterSteps;
 /// Largest (and inverse of the smallest) ratio of a prior variance to the noise variance,
 /// Lambda_k / sigma_n^2, and largest weight variance in units of sigma_n^2, (S S^T)_kk, that
 /// forgetting may reach. It keeps the entries of S far from overflow: squares of 1e100 are

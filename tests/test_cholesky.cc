@@ -1,0 +1,314 @@
+// The library's one positive-definite factorisation (internal/cholesky.h): the factor against
+// Eigen's LLT (bit-identical) and against A itself (L L^T = A + J to the backward-error bound),
+// the jitter ladder on rank-deficient and slightly indefinite matrices (status, the rung used,
+// never NaN), matrices that no jitter rescues (status and a zero factor), the pivot floor that
+// Eigen alone does not apply, scale invariance, bad arguments, and no allocation.
+
+#include <cfloat>
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+
+#include "alloc_counter.h"
+#include "structgp/internal/cholesky.h"
+
+namespace structgp {
+namespace {
+
+using internal::Cholesky;
+using internal::CholeskyOptions;
+using internal::CholeskyResult;
+using internal::JitterLadder;
+using internal::JitterScale;
+
+constexpr double kEps = DBL_EPSILON;
+
+std::mt19937_64 SeededRng(std::uint64_t seed) {
+  std::cout << "[ seed     ] " << seed << std::endl;
+  return std::mt19937_64(seed);
+}
+
+Matrix RandomMatrix(int rows, int cols, std::mt19937_64* rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  return Matrix::NullaryExpr(rows, cols, [&]() { return normal(*rng); });
+}
+
+// Q diag(eigenvalues) Q^T with a random orthogonal Q, symmetrised exactly.
+Matrix WithSpectrum(const Vector& eigenvalues, std::mt19937_64* rng) {
+  const int n = static_cast<int>(eigenvalues.size());
+  const Matrix Q = Eigen::HouseholderQR<Matrix>(RandomMatrix(n, n, rng)).householderQ();
+  const Matrix A = Q * eigenvalues.asDiagonal() * Q.transpose();
+  return 0.5 * (A + A.transpose());
+}
+
+// The rungs of the ladder, computed as the header defines them.
+double Rung(int k) {
+  double rung = internal::kJitterFirst;
+  for (int i = 0; i < k; ++i) rung *= internal::kJitterGrowth;
+  return rung;
+}
+
+// Backward error of Cholesky (Higham, Accuracy and Stability, Thm 10.3): the computed L has
+// L L^T = M + E with |E| <= gamma_{n+1} |L| |L^T|, gamma_k = k eps / (1 - k eps), and by
+// Cauchy-Schwarz (|L| |L^T|)_ij <= ||L_i|| ||L_j|| = sqrt((L L^T)_ii (L L^T)_jj). The entrywise
+// bound used below, 2 gamma_{n+1} sqrt(M_ii M_jj), allows for the rounding of M_ii itself.
+void ExpectReconstructs(const Matrix& L, const Matrix& M) {
+  const int n = static_cast<int>(M.rows());
+  const double gamma = (n + 1) * kEps / (1.0 - (n + 1) * kEps);
+  const Matrix LLt = L * L.transpose();
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double bound = 2.0 * gamma * std::sqrt(M(i, i) * M(j, j));
+      ASSERT_LE(std::abs(LLt(i, j) - M(i, j)), bound) << "entry (" << i << ", " << j << ")";
+    }
+  }
+}
+
+// The documented state of an accepted factor: lower-triangular, strictly upper part exactly
+// zero, positive finite diagonal.
+void ExpectValidFactor(const Matrix& L) {
+  ASSERT_TRUE(L.allFinite());
+  for (Eigen::Index j = 0; j < L.cols(); ++j) {
+    EXPECT_GT(L(j, j), 0.0) << "pivot " << j;
+    for (Eigen::Index i = 0; i < j; ++i) ASSERT_EQ(L(i, j), 0.0) << "(" << i << ", " << j << ")";
+  }
+}
+
+// A well-conditioned and a wide-spectrum (cond 1e10) matrix, at a scale far from 1: no jitter,
+// and the factor is Eigen's LLT bit for bit (the callers' results depend on it), with the solve
+// bit-identical too; L L^T = A to the backward-error bound.
+TEST(Cholesky, MatchesEigenBitForBitAndReconstructsA) {
+  auto rng = SeededRng(11);
+  for (const double decades : {2.0, 10.0}) {
+    SCOPED_TRACE("spectrum over " + std::to_string(decades) + " decades");
+    const int n = 60;
+    Vector spectrum(n);
+    for (int i = 0; i < n; ++i) spectrum[i] = 1e3 * std::pow(10.0, -decades * i / (n - 1));
+    const Matrix A = WithSpectrum(spectrum, &rng);
+    Cholesky chol;
+    const CholeskyResult result = chol.Factorize(A);
+    ASSERT_EQ(result.status, Status::kOk);
+    EXPECT_TRUE(chol.ok());
+    EXPECT_EQ(result.jitter, 0.0);
+    EXPECT_EQ(result.steps, 0);
+    ExpectValidFactor(chol.factor());
+    const Eigen::LLT<Matrix, Eigen::Lower> reference(A);
+    ASSERT_EQ(reference.info(), Eigen::Success);
+    const Matrix L_reference = reference.matrixL();
+    EXPECT_TRUE(chol.factor() == L_reference) << "factor differs from Eigen's LLT";
+    ExpectReconstructs(chol.factor(), A);
+    const Matrix B = RandomMatrix(n, 3, &rng);
+    EXPECT_TRUE(chol.solve(B) == reference.solve(B)) << "solve differs from Eigen's LLT";
+    const Matrix from_views = chol.matrixU().solve(chol.matrixL().solve(B));
+    EXPECT_TRUE(from_views == chol.solve(B));
+  }
+}
+
+// A rank-deficient Gram matrix (n = 40 points in a 10-dimensional feature space): singular to
+// working precision, so the first attempt fails the pivot floor; a rung of the ladder rescues it,
+// the result says which, and the factor is that of A + delta diag(A), exactly as documented.
+TEST(Cholesky, LadderRescuesARankDeficientMatrixAndReportsTheRung) {
+  auto rng = SeededRng(12);
+  const int n = 40;
+  const Matrix F = RandomMatrix(n, 10, &rng);
+  const Matrix A = F * F.transpose();
+  Cholesky chol;
+  const CholeskyResult result = chol.Factorize(A);
+  ASSERT_EQ(result.status, Status::kOk);
+  ASSERT_GE(result.steps, 1);
+  ASSERT_LE(result.steps, internal::kMaxJitterSteps);
+  EXPECT_EQ(result.jitter, Rung(result.steps - 1));
+  ExpectValidFactor(chol.factor());
+  Matrix jittered = A;
+  jittered.diagonal() = (1.0 + result.jitter) * A.diagonal();
+  ExpectReconstructs(chol.factor(), jittered);
+  const Matrix L_reference = Eigen::LLT<Matrix, Eigen::Lower>(jittered).matrixL();
+  EXPECT_TRUE(chol.factor() == L_reference);
+
+  // Without the ladder the same matrix is refused: status, zero factor, no NaN.
+  CholeskyOptions exact;
+  exact.ladder = JitterLadder::kNone;
+  const CholeskyResult refused = chol.Factorize(A, exact);
+  EXPECT_EQ(refused.status, Status::kNotPositiveDefinite);
+  EXPECT_FALSE(chol.ok());
+  EXPECT_EQ(refused.jitter, 0.0);
+  EXPECT_EQ(refused.steps, 0);
+  EXPECT_TRUE(chol.factor().isZero(0.0));
+}
+
+// Slightly indefinite (smallest eigenvalue -1e-8 of a unit spectrum, e.g. a kernel matrix with
+// rounding): the rungs 1e-11 and 1e-9 of the diagonal cannot lift it, 1e-7 can. The ladder takes
+// exactly the third rung.
+TEST(Cholesky, LadderClimbsToTheFirstRungThatMakesAnIndefiniteMatrixDefinite) {
+  auto rng = SeededRng(13);
+  const int n = 30;
+  Vector spectrum = Vector::Ones(n);
+  spectrum[n - 1] = -1e-8;
+  const Matrix A = WithSpectrum(spectrum, &rng);
+  ASSERT_GT(A.diagonal().minCoeff(), 0.5);  // so 1e-9 diag(A) < 1e-8 < 1e-7 diag(A)
+  Cholesky chol;
+  const CholeskyResult result = chol.Factorize(A);
+  ASSERT_EQ(result.status, Status::kOk);
+  EXPECT_EQ(result.steps, 3);
+  EXPECT_EQ(result.jitter, Rung(2));
+  ExpectValidFactor(chol.factor());
+  Matrix jittered = A;
+  jittered.diagonal() = (1.0 + result.jitter) * A.diagonal();
+  ExpectReconstructs(chol.factor(), jittered);
+}
+
+// Clearly indefinite (an eigenvalue -1), NaN on the diagonal, NaN off it, Inf: no jitter of
+// the ladder rescues these. Status kNotPositiveDefinite, the factor set to zero (never NaN).
+TEST(Cholesky, MatricesNoJitterRescuesEndInAStatusAndAZeroFactor) {
+  auto rng = SeededRng(14);
+  const int n = 12;
+  Vector spectrum = Vector::Ones(n);
+  spectrum[0] = -1.0;
+  const Matrix indefinite = WithSpectrum(spectrum, &rng);
+  Matrix nan_diagonal = WithSpectrum(Vector::Ones(n), &rng);
+  nan_diagonal(4, 4) = std::numeric_limits<double>::quiet_NaN();
+  Matrix nan_off_diagonal = WithSpectrum(Vector::Ones(n), &rng);
+  nan_off_diagonal(7, 2) = std::numeric_limits<double>::quiet_NaN();
+  Matrix inf_off_diagonal = WithSpectrum(Vector::Ones(n), &rng);
+  inf_off_diagonal(9, 3) = std::numeric_limits<double>::infinity();
+
+  Cholesky chol(n);
+  CholeskyResult result = chol.Factorize(indefinite);
+  EXPECT_EQ(result.status, Status::kNotPositiveDefinite);
+  EXPECT_EQ(result.steps, internal::kMaxJitterSteps);
+  EXPECT_EQ(result.jitter, Rung(internal::kMaxJitterSteps - 1));  // the last one tried
+  EXPECT_TRUE(chol.factor().isZero(0.0));
+
+  result = chol.Factorize(nan_diagonal);
+  EXPECT_EQ(result.status, Status::kNotPositiveDefinite);
+  EXPECT_EQ(result.steps, 0) << "a NaN diagonal is not retried";
+  EXPECT_TRUE(chol.factor().isZero(0.0));
+
+  for (const Matrix* bad : {&nan_off_diagonal, &inf_off_diagonal}) {
+    result = chol.Factorize(*bad);
+    EXPECT_EQ(result.status, Status::kNotPositiveDefinite);
+    EXPECT_FALSE(chol.ok());
+    EXPECT_TRUE(chol.factor().isZero(0.0));
+  }
+}
+
+// A pivot lost to rounding that Eigen's LLT accepts (it only refuses pivots <= 0): A =
+// [[1, 1], [1, 1 + 4 eps]] has L_11^2 / A_11 = 4 eps < kMinPivotRatio. The module refuses it
+// without the ladder and takes the first rung with it; scaling A by any diagonal D (features
+// in other units) changes neither outcome.
+TEST(Cholesky, PivotFloorCatchesWhatEigenAcceptsAndIsScaleInvariant) {
+  Matrix A(2, 2);
+  A << 1.0, 1.0, 1.0, 1.0 + 4 * kEps;
+  ASSERT_EQ(Eigen::LLT<Matrix>(A).info(), Eigen::Success);
+  CholeskyOptions exact;
+  exact.ladder = JitterLadder::kNone;
+  for (const double scale : {1.0, 1e-150, 1e150}) {
+    SCOPED_TRACE("D = diag(1, " + std::to_string(scale) + ")");
+    const Vector d = Eigen::Vector2d(1.0, scale);
+    const Matrix scaled = d.asDiagonal() * A * d.asDiagonal();
+    Cholesky chol;
+    EXPECT_EQ(chol.Factorize(scaled, exact).status, Status::kNotPositiveDefinite);
+    const CholeskyResult result = chol.Factorize(scaled);
+    ASSERT_EQ(result.status, Status::kOk);
+    EXPECT_EQ(result.steps, 1);
+    EXPECT_EQ(result.jitter, internal::kJitterFirst);
+    ExpectValidFactor(chol.factor());
+  }
+}
+
+// JitterScale::kMeanDiagonal with a floor, as NystromFeatureMap uses it: duplicate points make
+// the Gram matrix singular; the floor alone is added (no rung needed), as a multiple of the
+// identity, and the factor is Eigen's of K + (floor * MeanDiagonal(K)) I bit for bit.
+TEST(Cholesky, MeanDiagonalFloorIsAlwaysAddedAsAMultipleOfTheIdentity) {
+  auto rng = SeededRng(15);
+  const int n = 20;
+  Matrix F = RandomMatrix(n, 30, &rng);
+  F.row(7) = F.row(3);  // a duplicate point
+  F.row(0) *= 10.0;     // an uneven diagonal: the mean differs from each entry
+  const Matrix K = F * F.transpose();
+  CholeskyOptions options;
+  options.scale = JitterScale::kMeanDiagonal;
+  options.min_jitter = 1e-8;
+  Cholesky chol;
+  const CholeskyResult result = chol.Factorize(K, options);
+  ASSERT_EQ(result.status, Status::kOk);
+  EXPECT_EQ(result.steps, 0);
+  EXPECT_EQ(result.jitter, 1e-8);
+  EXPECT_EQ(internal::MeanDiagonal(K), K.diagonal().mean());
+  Matrix jittered = K;
+  jittered.diagonal().array() += result.jitter * internal::MeanDiagonal(K);
+  const Matrix L_reference = Eigen::LLT<Matrix, Eigen::Lower>(jittered).matrixL();
+  EXPECT_TRUE(chol.factor() == L_reference);
+  ExpectReconstructs(chol.factor(), jittered);
+
+  // Rungs at or below the floor are skipped: a matrix the floor cannot lift goes to 1e-7 next.
+  Vector spectrum = Vector::Ones(n);
+  spectrum[0] = -5e-8;
+  const Matrix indefinite = WithSpectrum(spectrum, &rng);
+  const CholeskyResult climbed = chol.Factorize(indefinite, options);
+  ASSERT_EQ(climbed.status, Status::kOk);
+  EXPECT_EQ(climbed.steps, 1);
+  EXPECT_EQ(climbed.jitter, Rung(2));
+}
+
+TEST(Cholesky, BadArgumentsThrowNamingTheProblem) {
+  Cholesky chol;
+  try {
+    chol.Factorize(Matrix::Identity(3, 4));
+    FAIL() << "a non-square matrix was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("expected a square matrix, got 3 x 4"), std::string::npos)
+        << e.what();
+  }
+  CholeskyOptions options;
+  options.min_jitter = -1.0;
+  EXPECT_THROW(chol.Factorize(Matrix::Identity(2, 2), options), std::invalid_argument);
+  options.min_jitter = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(chol.Factorize(Matrix::Identity(2, 2), options), std::invalid_argument);
+  // The empty matrix is positive definite.
+  EXPECT_EQ(chol.Factorize(Matrix(0, 0)).status, Status::kOk);
+}
+
+// The header's promise: after construction for size n, Factorize of an n x n matrix (success,
+// the ladder, failure) and SolveInPlace of a vector allocate nothing (n within the sizes for
+// which Eigen's blocked LLT needs no workspace of its own).
+TEST(Cholesky, FactorizeAndSolveAllocateNothingAfterConstruction) {
+  auto rng = SeededRng(16);
+  const int n = 64;
+  const Matrix good = WithSpectrum(Vector::LinSpaced(n, 1.0, 2.0), &rng);
+  const Matrix F = RandomMatrix(n, 8, &rng);
+  const Matrix singular = F * F.transpose();
+  Vector spectrum = Vector::Ones(n);
+  spectrum[0] = -1.0;
+  const Matrix indefinite = WithSpectrum(spectrum, &rng);
+  Vector x = Vector::Ones(n);
+  Cholesky chol(n);
+  CholeskyResult results[3];
+  {
+    testing::AllocationCounter guard;
+    results[0] = chol.Factorize(good);
+    chol.SolveInPlace(x);
+    results[1] = chol.Factorize(singular);
+    results[2] = chol.Factorize(indefinite);
+    if (testing::CountsEveryAllocation()) {
+      EXPECT_EQ(guard.count(), 0u);
+    }
+  }
+  EXPECT_EQ(results[0].status, Status::kOk);
+  EXPECT_EQ(results[1].status, Status::kOk);
+  EXPECT_GT(results[1].jitter, 0.0);
+  EXPECT_EQ(results[2].status, Status::kNotPositiveDefinite);
+  EXPECT_TRUE(x.allFinite());
+  if (!testing::CountsEveryAllocation()) GTEST_SKIP() << testing::kIncompleteCountReason;
+}
+
+}  // namespace
+}  // namespace structgp
