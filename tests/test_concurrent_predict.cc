@@ -65,12 +65,12 @@ TEST(ConcurrentPredict, WeightSpaceGPWithAStagedUpdate) {
   ExpectConcurrentEqualsSerial([&](Matrix* out) {
     WeightSpaceGP::Workspace workspace = shared.MakeWorkspace();
     out->resize(queries.rows(), 3 * P);
-    Vector m(P), l(P), n(P), mean_only(P);
+    Vector mu(P), l(P), n(P), mean_only(P);
     for (Eigen::Index i = 0; i < queries.rows(); ++i) {
-      ASSERT_EQ(shared.PredictWithVariance(queries.row(i).transpose(), m, l, n, workspace),
+      ASSERT_EQ(shared.PredictWithVariance(queries.row(i).transpose(), mu, l, n, workspace),
                 Status::kOk);
       ASSERT_EQ(shared.Predict(queries.row(i).transpose(), mean_only, workspace), Status::kOk);
-      out->row(i) << m.transpose(), l.transpose(), n.transpose();
+      out->row(i) << mu.transpose(), l.transpose(), n.transpose();
     }
   });
   EXPECT_TRUE(model.has_staged_update());  // no const call applied it
