@@ -145,5 +145,12 @@ TEST(ConcurrentPredict, RobotModelInFunctionSpace) {
   ExpectRobotModelConcurrent("rbf", Form::kAuto);
 }
 
+// Kernels holding a FeatureKernel: rbf with the friction bases (a sum), and pol in function
+// space (k_pol through its explicit map).
+TEST(ConcurrentPredict, RobotModelWithAFeatureKernel) {
+  ExpectRobotModelConcurrent("rbf+fri", Form::kAuto);
+  ExpectRobotModelConcurrent("pol", Form::kFunctionSpace);
+}
+
 }  // namespace
 }  // namespace structgp

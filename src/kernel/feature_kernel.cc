@@ -13,10 +13,6 @@ FeatureKernel::FeatureKernel(std::shared_ptr<const FeatureMap> map, const Hyperp
   if (map_ == nullptr) throw std::invalid_argument("FeatureKernel: the feature map is null");
   ValidateHyperparameters(hyper_, *map_, static_cast<int>(hyper_.log_output_scale.size()));
   blocks_ = map_->blocks();
-  const int dim = map_->dim();
-  phi_a_.resize(dim);
-  phi_b_.resize(dim);
-  product_.resize(dim);
   UpdatePrior();
 }
 
@@ -53,28 +49,62 @@ void FeatureKernel::AssignParameters(const ConstVectorRef& theta) {
   UpdatePrior();
 }
 
-void FeatureKernel::EvaluateFeatures(const ConstVectorRef& a, const ConstVectorRef& b) const {
-  map_->Evaluate(a, phi_a_);
-  map_->Evaluate(b, phi_b_);
-  product_ = phi_a_.cwiseProduct(phi_b_);
+namespace {
+
+// Features of one evaluation live on the stack up to this width (three vectors of D doubles:
+// 48 KiB at the limit), so Evaluate and Gradient allocate nothing and are safe for concurrent
+// calls; a wider map takes its scratch from the heap for each call.
+constexpr int kStackFeatures = 2048;
+
+// Calls f(phi_a, phi_b, product) on scratch of `dim` entries each, every vector aligned as a
+// Vector's storage is (same arithmetic as on Vectors).
+template <typename F>
+auto WithFeatureScratch(int dim, F&& f) {
+  using AlignedMap = Eigen::Map<Vector, Eigen::AlignedMax>;
+  constexpr int kLane = EIGEN_MAX_ALIGN_BYTES / sizeof(double) > 0
+                            ? EIGEN_MAX_ALIGN_BYTES / sizeof(double)
+                            : 1;
+  const int stride = (dim + kLane - 1) / kLane * kLane;
+  auto run = [&](double* s) {
+    AlignedMap phi_a(s, dim), phi_b(s + stride, dim), product(s + 2 * stride, dim);
+    return f(phi_a, phi_b, product);
+  };
+  if (stride <= kStackFeatures) {
+    alignas(EIGEN_MAX_ALIGN_BYTES > 0 ? EIGEN_MAX_ALIGN_BYTES : 16) double
+        buffer[3 * kStackFeatures];
+    return run(buffer);
+  }
+  Eigen::Matrix<double, Eigen::Dynamic, 1> heap(3 * static_cast<Eigen::Index>(stride));
+  return run(heap.data());
 }
 
+}  // namespace
+
 double FeatureKernel::Evaluate(const ConstVectorRef& a, const ConstVectorRef& b) const {
-  EvaluateFeatures(a, b);
-  return lambda_.dot(product_);
+  return WithFeatureScratch(map_->dim(), [&](auto& phi_a, auto& phi_b, auto& product) {
+    map_->Evaluate(a, phi_a);
+    map_->Evaluate(b, phi_b);
+    product = phi_a.cwiseProduct(phi_b);
+    return lambda_.dot(product);
+  });
 }
 
 void FeatureKernel::Gradient(const ConstVectorRef& a, const ConstVectorRef& b, VectorRef dk) const {
   assert(dk.size() == num_parameters());
-  EvaluateFeatures(a, b);
-  const int num_shape = map_->num_shape_parameters();
-  if (num_shape > 0) dk.head(num_shape).noalias() = d_lambda_d_shape_.transpose() * product_;
-  for (size_t k = 0; k < blocks_.size(); ++k) {
-    const FeatureBlock& block = blocks_[k];
-    dk[num_shape + static_cast<Eigen::Index>(k)] =
-        2.0 *
-        lambda_.segment(block.begin, block.size).dot(product_.segment(block.begin, block.size));
-  }
+  WithFeatureScratch(map_->dim(), [&](auto& phi_a, auto& phi_b, auto& product) {
+    map_->Evaluate(a, phi_a);
+    map_->Evaluate(b, phi_b);
+    product = phi_a.cwiseProduct(phi_b);
+    const int num_shape = map_->num_shape_parameters();
+    if (num_shape > 0) dk.head(num_shape).noalias() = d_lambda_d_shape_.transpose() * product;
+    for (size_t k = 0; k < blocks_.size(); ++k) {
+      const FeatureBlock& block = blocks_[k];
+      dk[num_shape + static_cast<Eigen::Index>(k)] =
+          2.0 *
+          lambda_.segment(block.begin, block.size).dot(product.segment(block.begin, block.size));
+    }
+    return 0;
+  });
 }
 
 std::unique_ptr<Kernel> FeatureKernel::Clone() const {

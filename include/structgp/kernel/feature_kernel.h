@@ -26,9 +26,9 @@ namespace structgp {
 /// Gradient by the chain rule: d k / d shape_s = sum_k (d Lambda_k / d shape_s) phi_k(a) phi_k(b)
 /// and d k / d log_block_scale_b = 2 sum_{k in b} Lambda_k phi_k(a) phi_k(b).
 ///
-/// Evaluate and Gradient cost two feature evaluations and O(D (1 + num_shape_parameters)),
-/// and do not allocate: they use three work vectors of size D held by the kernel (so a
-/// FeatureKernel is not safe for concurrent calls; Clone() one per thread).
+/// Evaluate and Gradient cost two feature evaluations and O(D (1 + num_shape_parameters)).
+/// Their scratch (three vectors of D) is on the stack for D <= 2048, so they do not allocate
+/// and are safe for concurrent calls; a wider map allocates its scratch in each call.
 class FeatureKernel : public Kernel {
  public:
   /// map: not null, shared (feature maps are immutable). hyper: validated against the map
@@ -58,18 +58,12 @@ class FeatureKernel : public Kernel {
   void AssignParameters(const ConstVectorRef& theta);
   // Recomputes Lambda and d Lambda / d shape from hyper_.
   void UpdatePrior();
-  // phi_a_ = phi(a), phi_b_ = phi(b), product_ = phi_a_ .* phi_b_.
-  void EvaluateFeatures(const ConstVectorRef& a, const ConstVectorRef& b) const;
 
   std::shared_ptr<const FeatureMap> map_;
   Hyperparameters hyper_;
   std::vector<FeatureBlock> blocks_;
   Vector lambda_;            // Lambda (D)
   Matrix d_lambda_d_shape_;  // D x num_shape_parameters
-
-  mutable Vector phi_a_;    // D
-  mutable Vector phi_b_;    // D
-  mutable Vector product_;  // D
 };
 
 }  // namespace structgp

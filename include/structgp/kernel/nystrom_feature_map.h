@@ -33,9 +33,9 @@
 ///
 /// Concurrency: the generic path calls the kernel's Evaluate, so concurrent calls are safe
 /// exactly when that is (the k_pol path does not call the kernel and is always safe).
-/// PolFormulaKernel and RbfKernel are safe (const, no scratch); FeatureKernel is not (it owns
-/// scratch vectors): for such a kernel give each thread its own copy of the kernel (Kernel::Clone)
-/// and use the Evaluate(x, phi, kernel) overload.
+/// Every built-in kernel is safe (FeatureKernel keeps its scratch on the stack); for a kernel
+/// of your own that is not, give each thread its own copy of the kernel (Kernel::Clone) and use
+/// the Evaluate(x, phi, kernel) overload.
 
 #include <cstdint>
 #include <memory>

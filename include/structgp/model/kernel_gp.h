@@ -19,8 +19,9 @@
 ///
 /// Threads (model apart from workspace): the const predictions take their scratch from a
 /// Workspace the caller owns (MakeWorkspace(), one per thread), so one const model may serve
-/// concurrent readers whose kernel's Evaluate is thread-safe (every kernel except
-/// FeatureKernel, and sums holding one). The overloads without a workspace are non-const and
+/// concurrent readers whose kernel's Evaluate is thread-safe (every built-in kernel: a
+/// FeatureKernel keeps its scratch on the stack, and allocates it per call only beyond 2048
+/// features). The overloads without a workspace are non-const and
 /// use the model's own scratch (allocation-free, not for concurrent use).
 ///
 /// Memory: Reserve(c) holds c (c + 1) / 2 doubles for L (16 MB at c = 2000, 64 MB at

@@ -62,8 +62,8 @@ struct AccumulateOptions {
 /// symmetric rank-k update. Memory: num_threads x (D^2 + chunk_rows x D + D x P) doubles,
 /// never m x D. Throws std::invalid_argument on sizes, options or non-finite values (naming
 /// the row). With num_threads > 1, map.Evaluate must be safe to call concurrently: every map of
-/// the library is, except a NystromFeatureMap on a kernel with scratch (FeatureKernel; see
-/// nystrom_feature_map.h), which needs num_threads = 1.
+/// the library is (a NystromFeatureMap on a kernel of your own is when that kernel's Evaluate
+/// is; see nystrom_feature_map.h).
 SufficientStatistics AccumulateStatistics(const FeatureMap& map, const ConstMatrixRef& X,
                                           const ConstMatrixRef& Y,
                                           const AccumulateOptions& options = {});
