@@ -19,6 +19,7 @@
 
 #include "battery_options.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
 #include "structgp/feature/friction_feature_map.h"
@@ -171,7 +172,7 @@ TEST(EffectDescribe, OnePhrasePerBuiltInEffect) {
   Suggestion s;
   s.effect = "cogging";
   s.params = {{"period", 0.25}, {"harmonics", 1.0}};
-  EXPECT_EQ(Describe(s), "cogging (period 0.25 rad)");
+  EXPECT_EQ(DescribeEffect(s), "cogging (period 0.25 rad)");
 }
 
 // viscous, Coulomb and offset are what "+fri" adds: the block of FrictionFeatureMap.
@@ -344,7 +345,7 @@ void ExpectRoundTrip(const Diagnosis& d) {
       EXPECT_EQ(parsed[0].joints, std::vector<int>{s.joint});
       const std::shared_ptr<const Effect> effect = MakeEffect(parsed[0].name, parsed[0].params);
       EXPECT_EQ(effect->parameters(), s.params);
-      EXPECT_EQ(effect->Describe(), Describe(s));
+      EXPECT_EQ(effect->Describe(), DescribeEffect(s));
       EXPECT_TRUE((Features(effect, s.joint).array() ==
                    Features(MakeEffect(s.effect, s.params), s.joint).array())
                       .all());
@@ -519,7 +520,7 @@ TEST(UserEffect, DiagnosisEstimatesItsParameterAndSuggestsIt) {
   // error falls by more than half.
   EXPECT_LT(top.rms_after, 0.5 * top.rms_before);
   EXPECT_LT(top.residual_rms_after, top.residual_rms_before);
-  EXPECT_EQ(Describe(top).rfind("a bump at 0.", 0), 0u) << Describe(top);
+  EXPECT_EQ(DescribeEffect(top).rfind("a bump at 0.", 0), 0u) << DescribeEffect(top);
   ExpectRoundTrip(d);
 }
 

@@ -193,6 +193,14 @@ TEST(FitModel, CallbackAbortLeavesTheModelUnfitted) {
     EXPECT_FALSE(fit.summary.IsUsable());
     EXPECT_FALSE(fit.model.fitted());
   }
+  // A stop asked by the evidence options' own iteration callback is a user abort too.
+  {
+    FitOptions options;
+    options.evidence.iteration_callback = [](int, double) { return false; };
+    const FittedModel fit = FitModel(Spec("pol"), d.X, d.Y, Vector(), options);
+    EXPECT_EQ(fit.summary.termination, FitTermination::kUserAbort);
+    EXPECT_FALSE(fit.model.fitted());
+  }
   // Abort at the first progress line: nothing is computed.
   FitOptions options;
   options.callback = [](const FitProgress&) { return FitCallbackReturn::kAbort; };

@@ -15,6 +15,7 @@
 #include "structgp/feature/effects.h"
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/kernel/nystrom_feature_map.h"
+#include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/internal/cholesky.h"
@@ -35,14 +36,10 @@ struct Candidate {
   bool alive = true;
 };
 
-// Folds: contiguous, in time order, sizes differing by at most one.
+// Folds as (begin, size): ContiguousFolds' blocks, in time order.
 std::vector<std::pair<int, int>> Folds(int m, int k) {
-  std::vector<std::pair<int, int>> folds;
-  for (int f = 0; f < k; ++f) {
-    const int begin = static_cast<int>(static_cast<long>(m) * f / k);
-    const int end = static_cast<int>(static_cast<long>(m) * (f + 1) / k);
-    folds.emplace_back(begin, end - begin);
-  }
+  std::vector<std::pair<int, int>> folds = ContiguousFolds(m, k);
+  for (auto& fold : folds) fold.second -= fold.first;
   return folds;
 }
 
@@ -176,7 +173,13 @@ class EvidenceScorer {
     } catch (const std::invalid_argument&) {
       return -HUGE_VAL;
     }
-    if (!ready_) SetUp();
+    if (!ready_) {
+      try {
+        SetUp();
+      } catch (const std::runtime_error&) {
+        base_.ok = false;  // the evidence of the log could not be profiled: nothing to score
+      }
+    }
     if (!base_.ok) return -HUGE_VAL;
     const int N = static_cast<int>(Y_.cols());
     EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
@@ -301,8 +304,13 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
   return true;
 }
 
-Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                   const Vector& t, const DiagnosisOptions& options) {
+namespace {
+
+// Diagnose, with numerical trouble deep inside (a profile of the evidence, the Nystrom
+// factorisation, a prediction) as std::runtime_error.
+Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
+                          const ConstMatrixRef& Y, const Vector& t,
+                          const DiagnosisOptions& options) {
   std::string invalid;
   if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
   if (!model.fitted() || (!model.feature_map() && !model.kernel())) {
@@ -600,8 +608,22 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   return out;
 }
 
-std::string Describe(const Suggestion& suggestion) {
-  return MakeEffect(suggestion.effect, suggestion.params)->Describe();
+}  // namespace
+
+Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                   const Vector& t, const DiagnosisOptions& options) {
+  try {
+    return DiagnoseOrThrow(model, X, Y, t, options);
+  } catch (const std::invalid_argument&) {
+    throw;  // a caller mistake
+  } catch (const std::runtime_error& e) {
+    Diagnosis out;
+    out.status = DiagnosisStatus::kNumericalFailure;
+    out.message = e.what();
+    out.num_samples = static_cast<int>(X.rows());
+    out.model = ToString(model.spec());
+    return out;
+  }
 }
 
 std::string ToJson(const Diagnosis& d) {

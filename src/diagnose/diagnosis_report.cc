@@ -38,6 +38,10 @@ ModelSpec WithSuggestions(const ModelSpec& spec, const Diagnosis& diagnosis) {
 std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
                             const DiagnosisOptions& options) {
   std::ostringstream os;
+  if (d.status != DiagnosisStatus::kOk) {
+    os << "the diagnosis failed (" << ToString(d.status) << "): " << d.message << "\n";
+    return os.str();
+  }
   std::vector<std::vector<std::string>> rows = {
       {"joint", "RMS", "nMSE", "noise est.", "error concentrates along"}};
   for (const JointFinding& f : d.joints) {

@@ -72,6 +72,8 @@ class Fit {
   }
   FitSummary Aborted() { return Finish(FitTermination::kUserAbort, "the callback asked to stop"); }
   bool aborted() const { return aborted_; }
+  // A stop asked by MaximumLikelihoodOptions::iteration_callback itself.
+  void MarkAborted() { aborted_ = true; }
 
   // Records an evidence search; false (with the summary finished) when the model cannot be
   // fitted after it.
@@ -138,7 +140,10 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
       fit->options().output_scaling == OutputScaling::kPerJointRms) {
     if (!fit->Report("profiling the noise level and output scales by evidence")) return false;
     try {
-      *h = ProfileNoiseAndScales(evidence, *h);
+      // The profile's own range, within the noise bounds of the search that follows.
+      const LogBounds& noise = fit->options().evidence.noise_bounds;
+      *h = ProfileNoiseAndScales(evidence, *h, std::max(-9.0, noise.lower),
+                                 std::min(1.0, noise.upper));
     } catch (const std::runtime_error& e) {
       *failure = std::string("hyper-parameters by evidence: ") + e.what();
       return false;
@@ -149,7 +154,10 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
     return false;
   }
   const MaximumLikelihoodSummary s = FitHyperparameters(evidence, fit->EvidenceOptions(), h);
-  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) return false;
+  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
+    fit->MarkAborted();
+    return false;
+  }
   if (!s.usable()) {
     *failure = "type-II maximum likelihood: " + s.message;
     return false;
@@ -237,7 +245,10 @@ bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameter
   }
   const MaximumLikelihoodSummary s =
       FitKernelHyperparameters(kernel, Xs, Ys, fit->EvidenceOptions(), h);
-  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) return false;
+  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
+    fit->MarkAborted();
+    return false;
+  }
   if (!s.usable()) {
     *failure = "type-II maximum likelihood: " + s.message;
     return false;
@@ -457,7 +468,7 @@ FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,
 std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   std::ostringstream os;
   const int N = model.num_joints();
-  if (!model.fitted()) {
+  if (!summary.IsUsable() || !model.fitted()) {
     os << "not fitted: " << ToString(summary.termination) << ": " << summary.message << "\n";
     return os.str();
   }

@@ -48,7 +48,8 @@ struct DiagnosisOptions {
   int bins = 10;
   /// Where ProposeParameters searches a parameter, by "effect.parameter", overriding the
   /// parameter's own search range (EffectParameter::search; cogging's period: [0.02, 3] rad),
-  /// e.g. {{"cogging.period", {0.05, 1.0}}}.
+  /// e.g. {{"cogging.period", {0.05, 1.0}}}. Read by effects that search a range (among the
+  /// built-in ones, cogging's period; Stribeck and drift derive theirs from the data).
   std::map<std::string, ParameterRange> search_ranges;
   /// Models in function space (rbf, rbfs, pol beyond its explicit map): the candidates are
   /// scored against this many Nystrom features of the model's kernel (at most half the rows),
@@ -93,10 +94,6 @@ struct Suggestion {
   /// back this effect on this joint, with these params.
   std::string spec;
 };
-
-/// The suggested effect in one phrase for a report: MakeEffect(effect, params)->Describe()
-/// ("Coulomb friction", "cogging (period 0.304 rad)").
-std::string Describe(const Suggestion& suggestion);
 
 /// How a diagnosis ended.
 enum class DiagnosisStatus {

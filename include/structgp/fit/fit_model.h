@@ -15,7 +15,7 @@
 /// cannot use) throw std::invalid_argument naming what is wrong; numerical trouble (the
 /// evidence cannot be evaluated at the start, every cross-validation candidate fails, the
 /// posterior is not positive definite) and a cancelled fit are reported by
-/// FitSummary::termination, with the model left unfitted.
+/// FitSummary::termination, with the model left as it was (unfitted, or its earlier fit).
 
 #include <functional>
 #include <string>
@@ -101,7 +101,7 @@ struct FitOptions {
   int num_threads = 1;
 
   /// Called with every progress line and after every LBFGS iteration; kAbort stops the fit
-  /// (FitTermination::kUserAbort, the model is left unfitted). Called on the thread that
+  /// (FitTermination::kUserAbort, the model is left as it was). Called on the thread that
   /// called FitModel. May be empty.
   std::function<FitCallbackReturn(const FitProgress&)> callback;
 
@@ -124,9 +124,10 @@ enum class FitTermination {
   /// The evidence search found no step that lowers the objective (usually at a bound, or at
   /// the limit of rounding); the model is fitted at the best point evaluated.
   kLineSearchFailed,
-  /// The callback asked to stop. The model is not fitted.
+  /// FitOptions::callback or MaximumLikelihoodOptions::iteration_callback asked to stop. The
+  /// model is left as it was.
   kUserAbort,
-  /// Numerical failure; the model is not fitted. The message names the cause.
+  /// Numerical failure; the model is left as it was. The message names the cause.
   kFailure,
 };
 
@@ -195,7 +196,8 @@ FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,
 /// time. Throws std::invalid_argument when the model needs t and t is empty, or on sizes.
 Matrix ModelInputs(const RobotModel& model, const ConstMatrixRef& states, const ConstVectorRef& t);
 
-/// Multi-line description of a fitted model and its fit: features and form, how the
+/// Multi-line description of a fitted model and its fit (one line saying why when the fit is
+/// not usable): features and form, how the
 /// hyper-parameters were chosen (with the notes), every hyper-parameter, the noise per joint,
 /// the log evidence and the friction and effect coefficients with their posterior std.
 std::string FitReport(const RobotModel& model, const FitSummary& summary);

@@ -59,7 +59,8 @@ struct Component {
 
 /// Everything a fitted RobotModel's later results depend on (RobotModel::State), so that
 /// RobotModel::FromState restores it exactly: the same predictions, components, evidence and
-/// online updates, bit for bit.
+/// online updates, bit for bit (the function-space form refits its stored points in one batch:
+/// after online additions that agrees to rounding only).
 struct RobotModelState {
   ModelSpec spec;
   int num_joints = 0;

@@ -18,8 +18,8 @@
 /// which yields the gain A'^{-1} phi in the same pass. UpdateAndPredict goes further: it
 /// stages the update of S and applies it in the same pass that projects the next sample, so
 /// a control-loop step (update, keep W current, predict mean and variance at the next state)
-/// reads and writes S once. Every result is exact at all times: a staged change is applied
-/// before anything reads S or W. Removing a sample
+/// reads and writes S once. Every result is exact at all times: a non-const reader applies a
+/// staged change first, a const prediction reads through it (see below). Removing a sample
 /// is the same update with negative weight, and is refused with kNotPositiveDefinite when it
 /// would leave A indefinite (phi^T A^{-1} phi * v >= 1 - kMinDowndateMargin).
 ///
@@ -108,7 +108,6 @@ inline constexpr double kMaxPriorToNoiseRatio = 1e200;
 /// WeightSpaceGP accepts.
 bool PriorToNoiseRatioOk(const Vector& prior_variance, double noise_variance);
 
-/// Derivatives of the log marginal likelihood.
 /// Whether WeightSpaceGP::Fit may add jitter when the precision is singular to working
 /// precision (the ladder of the policy above).
 enum class FitJitter {
@@ -116,6 +115,7 @@ enum class FitJitter {
   kNone,    ///< give up at once (evidence for hyper-parameter search: an exact value or none)
 };
 
+/// Derivatives of the log marginal likelihood.
 struct EvidenceGradient {
   /// d log p(Y) / d log Lambda_k, one per feature (size D). A block scale or a shape
   /// parameter follows by the chain rule (see hyper/evidence.h).
