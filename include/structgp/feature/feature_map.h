@@ -23,7 +23,7 @@ struct FeatureBlock {
 
 /// Interface of every feature map.
 ///
-/// Invariants a map must keep (checked for every map by tests/feature_map_battery.h):
+/// Invariants a map must keep (checked for every map by structgp/testing/feature_map_battery.h):
 /// - dim() and input_dim() never change after construction;
 /// - Evaluate() is a pure function of x, does not allocate and is safe to call concurrently;
 /// - blocks() tile [0, dim()) in order, without gaps or overlaps;
