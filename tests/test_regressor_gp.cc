@@ -15,6 +15,7 @@
 
 #include "alloc_counter.h"
 #include "structgp/feature/regressor_map.h"
+#include "structgp/hyper/marginal_likelihood.h"
 
 namespace structgp {
 namespace {
@@ -250,6 +251,39 @@ TEST_F(RegressorGPTest, PredictionAllocatesNothingAndRefusesBadInput) {
   EXPECT_EQ(gp.PredictWithVariance(psi, mean, latent, noisy, ws), Status::kInvalidInput);
   EXPECT_EQ(mean, before);
   EXPECT_EQ(gp.Predict(Matrix::Zero(N, 2), mean), Status::kInvalidInput);
+}
+
+TEST_F(RegressorGPTest, TypeTwoMaximumLikelihoodFindsEachOutputsNoise) {
+  const Data big = MakeData(map_, 3000, noise_std_, 9);
+  RegressorStatistics stats(map_.dim(), map_.num_outputs());
+  stats.Accumulate(map_, big.X, big.Y);
+  Hyperparameters hyper;
+  hyper.log_block_scale = Vector::Zero(2);
+  hyper.log_noise_std = std::log(0.1);
+  hyper.log_output_scale = Vector::Zero(3);  // every output starts at noise 0.1
+  MaximumLikelihoodOptions options;
+  // The objective's gradient against central differences at the start.
+  const RegressorEvidenceObjective objective(map_, stats, options, hyper);
+  ASSERT_EQ(objective.names().size(), 5u);
+  Vector x = objective.Flatten(hyper), g(5);
+  double f = 0.0;
+  ASSERT_TRUE(objective.Evaluate(x.data(), &f, g.data()));
+  for (int i = 0; i < 5; ++i) {
+    Vector up = x, down = x;
+    up[i] += 1e-6;
+    down[i] -= 1e-6;
+    double fu = 0.0, fd = 0.0;
+    ASSERT_TRUE(objective.Evaluate(up.data(), &fu, nullptr));
+    ASSERT_TRUE(objective.Evaluate(down.data(), &fd, nullptr));
+    EXPECT_NEAR(g[i], (fu - fd) / 2e-6, 1e-6 * (1 + std::abs(g[i]))) << objective.names()[i];
+  }
+  const MaximumLikelihoodSummary summary = FitRegressorHyperparameters(map_, stats, options, &hyper);
+  ASSERT_TRUE(summary.usable()) << summary.BriefReport();
+  EXPECT_LT(summary.final_negative_log_likelihood, summary.initial_negative_log_likelihood);
+  for (int j = 0; j < 3; ++j) {
+    const double sigma = std::exp(hyper.log_noise_std + hyper.log_output_scale[j]);
+    EXPECT_NEAR(sigma / noise_std_[j], 1.0, 0.06) << "output " << j + 1;
+  }
 }
 
 TEST(RegressorGP, RefusesBadPriorsAndStatistics) {

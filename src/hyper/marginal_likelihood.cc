@@ -556,4 +556,131 @@ MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const Co
   return summary;
 }
 
+// ---- shared-parameter regressor ---------------------------------------------------------------
+
+RegressorEvidenceObjective::RegressorEvidenceObjective(const RegressorMap& map,
+                                                       const RegressorStatistics& statistics,
+                                                       const MaximumLikelihoodOptions& options,
+                                                       const Hyperparameters& start)
+    : map_(&map),
+      statistics_(&statistics),
+      blocks_(map.blocks()),
+      free_blocks_(options.optimize_block_scales),
+      free_noise_(options.optimize_noise),
+      base_(start) {
+  options.Validate();
+  const int N = map.num_outputs();
+  if (statistics.num_parameters() != map.dim() || statistics.num_outputs() != N) {
+    throw std::invalid_argument("RegressorEvidenceObjective: statistics of " +
+                                std::to_string(statistics.num_parameters()) + " parameters and " +
+                                std::to_string(statistics.num_outputs()) +
+                                " outputs, the map has " + std::to_string(map.dim()) + " and " +
+                                std::to_string(N));
+  }
+  start.Validate(0, static_cast<Eigen::Index>(blocks_.size()), N,
+                 "RegressorEvidenceObjective start");
+  std::vector<double> lower, upper;
+  auto add = [&](const std::string& name, const LogBounds& bounds) {
+    names_.push_back(name);
+    lower.push_back(bounds.lower);
+    upper.push_back(bounds.upper);
+  };
+  if (free_blocks_) {
+    for (const FeatureBlock& b : blocks_) add("log_block_scale_" + b.name, options.block_scale_bounds);
+  }
+  if (free_noise_) {
+    for (int j = 0; j < N; ++j) {
+      add("log_output_scale_" + std::to_string(j + 1), options.output_scale_bounds);
+    }
+  }
+  lower_ = Eigen::Map<const Vector>(lower.data(), static_cast<Eigen::Index>(lower.size()));
+  upper_ = Eigen::Map<const Vector>(upper.data(), static_cast<Eigen::Index>(upper.size()));
+  num_observations_ = std::max(1.0, statistics.count) * N;
+}
+
+Vector RegressorEvidenceObjective::Flatten(const Hyperparameters& hyper) const {
+  Vector x(num_parameters());
+  Eigen::Index i = 0;
+  if (free_blocks_) {
+    x.segment(i, hyper.log_block_scale.size()) = hyper.log_block_scale;
+    i += hyper.log_block_scale.size();
+  }
+  if (free_noise_) x.segment(i, hyper.log_output_scale.size()) = hyper.log_output_scale;
+  return x;
+}
+
+Hyperparameters RegressorEvidenceObjective::ToHyperparameters(const ConstVectorRef& x) const {
+  RequireSize("RegressorEvidenceObjective::ToHyperparameters x", x.size(), num_parameters());
+  Hyperparameters hyper = base_;
+  Eigen::Index i = 0;
+  if (free_blocks_) {
+    hyper.log_block_scale = x.segment(i, base_.log_block_scale.size());
+    i += base_.log_block_scale.size();
+  }
+  if (free_noise_) hyper.log_output_scale = x.segment(i, base_.log_output_scale.size());
+  return hyper;
+}
+
+bool RegressorEvidenceObjective::Evaluate(const double* x, double* cost, double* gradient) const {
+  ++num_evaluations_;
+  const Eigen::Map<const Vector> xv(x, num_parameters());
+  if (!InsideBox(xv, lower_, upper_)) {
+    ++num_out_of_bounds_;
+    return false;
+  }
+  const Hyperparameters hyper = ToHyperparameters(xv);
+  const Vector noise =
+      (2.0 * (hyper.log_output_scale.array() + hyper.log_noise_std)).exp().matrix();
+  RegressorGP model(map_->prior_mean(), RegressorPriorVariance(*map_, hyper.log_block_scale),
+                    noise);
+  if (model.Fit(*statistics_, /*ladder=*/false) != Status::kOk) {
+    ++num_failed_;
+    return false;
+  }
+  RegressorEvidenceGradient g;
+  const double lml = model.LogMarginalLikelihood(gradient != nullptr ? &g : nullptr);
+  if (!std::isfinite(lml)) {
+    ++num_failed_;
+    return false;
+  }
+  if (gradient != nullptr) {
+    Vector d(num_parameters());
+    Eigen::Index i = 0;
+    if (free_blocks_) {
+      for (const FeatureBlock& b : blocks_) {
+        d[i++] = 2.0 * g.d_log_prior_variance.segment(b.begin, b.size).sum();
+      }
+    }
+    if (free_noise_) {
+      d.segment(i, g.d_log_noise_variance.size()) = 2.0 * g.d_log_noise_variance;
+    }
+    if (!d.allFinite()) {
+      ++num_failed_;
+      return false;
+    }
+    Eigen::Map<Vector>(gradient, num_parameters()) = -d / num_observations_;
+  }
+  *cost = -lml / num_observations_;
+  return true;
+}
+
+MaximumLikelihoodSummary FitRegressorHyperparameters(const RegressorMap& map,
+                                                     const RegressorStatistics& statistics,
+                                                     const MaximumLikelihoodOptions& options,
+                                                     Hyperparameters* hyper) {
+  if (hyper == nullptr) throw std::invalid_argument("FitRegressorHyperparameters: null hyper");
+  const RegressorEvidenceObjective objective(map, statistics, options, *hyper);
+  Vector x = objective.Flatten(*hyper);
+  std::vector<std::string> bounds_names;
+  const int num_blocks = options.optimize_block_scales ? static_cast<int>(map.blocks().size()) : 0;
+  for (int i = 0; i < objective.num_parameters(); ++i) {
+    bounds_names.push_back(i < num_blocks ? "block_scale_bounds" : "output_scale_bounds");
+  }
+  RequireStartInside("FitRegressorHyperparameters", x, objective.lower_bounds(),
+                     objective.upper_bounds(), objective.names(), bounds_names);
+  MaximumLikelihoodSummary summary = Minimize(objective, options, objective.names(), &x);
+  if (summary.usable()) *hyper = objective.ToHyperparameters(x);
+  return summary;
+}
+
 }  // namespace structgp

@@ -32,6 +32,8 @@
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
+#include "structgp/feature/regressor_map.h"
+#include "structgp/model/regressor_gp.h"
 
 namespace structgp {
 
@@ -272,6 +274,58 @@ MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const Co
                                                   const ConstMatrixRef& Y,
                                                   const MaximumLikelihoodOptions& options,
                                                   Hyperparameters* hyper);
+
+/// The objective of FitRegressorHyperparameters: f(x) = -log p(Y | x) / (m N) of a RegressorGP
+/// (model/regressor_gp.h) on fixed statistics, O(N P^2 + P^3) per evaluation. Hyper-parameters
+/// of a regressor: shape empty, one log block scale per block of the map (prior variance of
+/// parameter k of block b: (prior_std_k exp(log_block_scale_b))^2), and the noise of output j,
+/// sigma_j = exp(log_noise_std + log_output_scale_j). Free entries, in order:
+/// "log_block_scale_<block>" for every block when optimize_block_scales (block_scale_bounds),
+/// "log_output_scale_<j>" (j = 1..N, the per-output noise levels; output_scale_bounds) when
+/// optimize_noise; log_noise_std stays at its start (only the sums are identified). map and
+/// statistics must outlive the objective. Not safe for concurrent calls.
+class RegressorEvidenceObjective {
+ public:
+  /// Throws std::invalid_argument on invalid options, or when the statistics or start do not
+  /// match the map.
+  RegressorEvidenceObjective(const RegressorMap& map, const RegressorStatistics& statistics,
+                             const MaximumLikelihoodOptions& options,
+                             const Hyperparameters& start);
+
+  int num_parameters() const { return static_cast<int>(names_.size()); }
+  const std::vector<std::string>& names() const { return names_; }
+  const Vector& lower_bounds() const { return lower_; }
+  const Vector& upper_bounds() const { return upper_; }
+  double num_observations() const { return num_observations_; }
+  bool Evaluate(const double* x, double* cost, double* gradient) const;
+  Vector Flatten(const Hyperparameters& hyper) const;
+  Hyperparameters ToHyperparameters(const ConstVectorRef& x) const;
+  int num_evaluations() const { return num_evaluations_; }
+  int num_failed_evaluations() const { return num_failed_; }
+  int num_out_of_bounds_evaluations() const { return num_out_of_bounds_; }
+
+ private:
+  const RegressorMap* map_;
+  const RegressorStatistics* statistics_;
+  std::vector<FeatureBlock> blocks_;
+  bool free_blocks_, free_noise_;
+  Hyperparameters base_;
+  std::vector<std::string> names_;
+  Vector lower_, upper_;
+  double num_observations_;
+  mutable int num_evaluations_ = 0;
+  mutable int num_failed_ = 0;
+  mutable int num_out_of_bounds_ = 0;
+};
+
+/// Maximises log p(Y | hyper) of a RegressorGP over the free entries of *hyper (see
+/// RegressorEvidenceObjective), from *hyper; on return *hyper holds the best point evaluated.
+/// Throws std::invalid_argument as the objective does, or when a free start lies outside its
+/// bounds.
+MaximumLikelihoodSummary FitRegressorHyperparameters(const RegressorMap& map,
+                                                     const RegressorStatistics& statistics,
+                                                     const MaximumLikelihoodOptions& options,
+                                                     Hyperparameters* hyper);
 
 }  // namespace structgp
 
