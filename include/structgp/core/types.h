@@ -15,6 +15,8 @@ using ConstVectorRef = Eigen::Ref<const Eigen::VectorXd>;
 /// Writable view of a vector of the right size.
 using VectorRef = Eigen::Ref<Eigen::VectorXd>;
 using ConstMatrixRef = Eigen::Ref<const Eigen::MatrixXd>;
+/// Writable view of a matrix of the right size.
+using MatrixRef = Eigen::Ref<Eigen::MatrixXd>;
 
 }  // namespace structgp
 
