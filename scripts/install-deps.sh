@@ -9,6 +9,7 @@ packages=(
   libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
   libboost-dev
   liborocos-kdl-dev
+  libkdl-parser-dev liburdfdom-dev  # URDF robots (src/rigid_body)
   libgtest-dev libgmock-dev
   libbenchmark-dev
   nlohmann-json3-dev libcli11-dev
