@@ -35,7 +35,8 @@ class TestRegressor final : public RegressorMap {
   int input_dim() const override { return input_dim_; }
   int num_outputs() const override { return num_outputs_; }
   int dim() const override { return dim_; }
-  void Evaluate(const ConstVectorRef& x, MatrixRef psi) const override {
+  using RegressorMap::Evaluate;
+  void Evaluate(const ConstVectorRef& x, MatrixRef psi, Scratch*) const override {
     for (int r = 0; r < num_outputs_; ++r) {
       for (int c = 0; c < dim_; ++c) {
         double v = 0.0;
@@ -311,7 +312,7 @@ TEST(RegressorMap, DefaultComponentsAreTheBlocksAndAddUp) {
   map.Evaluate(x, full);
   ASSERT_EQ(map.component_names(), (std::vector<std::string>{"first", "second"}));
   for (int c = 0; c < 2; ++c) {
-    map.EvaluateComponent(c, x, part);
+    map.EvaluateComponent(c, x, part, nullptr);
     sum += part;
   }
   EXPECT_EQ(sum, full);

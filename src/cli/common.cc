@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 
@@ -67,6 +68,52 @@ RobotModel MakeModel(const ModelSpec& spec, int num_joints, const RobotModelOpti
     return RobotModel(spec, num_joints, options);
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--model/--effects: ") + e.what());
+  }
+}
+
+void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
+  command->add_option("--urdf", flags->urdf,
+                      "The robot's URDF (model rbd: its kinematic chain and the prior on its "
+                      "inertial parameters)");
+  command->add_option("--root", flags->root, "Base link of the chain (default: the URDF's root)");
+  command->add_option("--tip", flags->tip,
+                      "Last link of the chain (default: the single leaf below --root)");
+  command->add_option("--gravity", flags->gravity,
+                      "Gravitational acceleration in the root frame, m/s^2, as X,Y,Z")
+      ->capture_default_str();
+}
+
+std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags) {
+  if (flags.urdf.empty()) {
+    if (!flags.root.empty() || !flags.tip.empty()) {
+      throw UsageError("--root/--tip: they select a chain of --urdf, which is not given");
+    }
+    return nullptr;
+  }
+  UrdfOptions options;
+  options.root = flags.root;
+  options.tip = flags.tip;
+  std::vector<double> g;
+  std::stringstream in(flags.gravity);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(v)) {
+      throw UsageError("--gravity: expected three numbers X,Y,Z (m/s^2), got '" + flags.gravity +
+                       "'");
+    }
+    g.push_back(v);
+  }
+  if (g.size() != 3) {
+    throw UsageError("--gravity: expected three numbers X,Y,Z (m/s^2), got '" + flags.gravity +
+                     "'");
+  }
+  options.gravity = Eigen::Vector3d(g[0], g[1], g[2]);
+  try {
+    return std::make_shared<const RigidBodyChain>(RigidBodyChain::FromUrdfFile(flags.urdf, options));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--urdf: ") + e.what());
   }
 }
 

@@ -5,7 +5,10 @@
 // data for a model, the library's fit with progress lines, errors per joint, tables, and
 // writing every output only after all of them have been computed.
 
+#include <CLI/CLI.hpp>
+
 #include <chrono>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -19,6 +22,7 @@
 #include "structgp/io/robot_data.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/report/report.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
 namespace cli {
@@ -70,6 +74,17 @@ std::string ModelLabel(const ModelSpec& spec);
 ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects);
 RobotModel MakeModel(const ModelSpec& spec, int num_joints,
                      const RobotModelOptions& options = RobotModelOptions());
+
+/// --urdf FILE, --root LINK, --tip LINK, --gravity X,Y,Z: the robot of `rbd` models (and of the
+/// demo), read with kdl_parser.
+struct RobotFlags {
+  std::string urdf, root, tip, gravity = "0,0,-9.81";
+};
+/// Adds the four flags to a command.
+void AddRobotFlags(CLI::App* command, RobotFlags* flags);
+/// The chain of --urdf (null without --urdf). UsageError naming the flag for a bad --gravity,
+/// and for a URDF that cannot be read or has no such chain (the message names the file).
+std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags);
 
 /// "ml", "cv", "fixed" (--hyper); UsageError for anything else.
 HyperparameterMethod ParseHyperMethod(const std::string& text);

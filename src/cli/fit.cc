@@ -20,7 +20,8 @@ class FitCommand : public Command {
                     "and optionally t (s)")
         ->required();
     cmd->add_option("--model", model_,
-                    "Base model: pol, rbf, rbfs or motor, optionally with +fri (e.g. pol+fri)")
+                    "Base model: pol, rbf, rbfs, motor or rbd (the rigid-body regressor of "
+                    "--urdf), optionally with +fri (e.g. pol+fri)")
         ->required();
     cmd->add_option("--effects", effects_,
                     "Effects to add, e.g. 'coulomb@2', 'viscous,offset', "
@@ -48,6 +49,7 @@ class FitCommand : public Command {
                     "features than rows) are fitted on at most this many evenly spaced rows; 0 = no limit")
         ->check(CLI::Range(0, 100000000))
         ->capture_default_str();
+    AddRobotFlags(cmd, &robot_);
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
     cmd->add_flag("-v,--verbose", options_.evidence.verbose, "One line per optimiser iteration");
     cmd->footer(
@@ -68,6 +70,7 @@ class FitCommand : public Command {
     RobotModelOptions options;
     options.batch.num_threads = options_.num_threads;
     options.batch.max_kernel_rows = max_kernel_rows_;
+    options.rigid_body = LoadRobot(robot_);
     RobotModel model = MakeModel(spec, data.num_joints, options);
     const FitSummary summary = FitModel(data, options_, progress, &model);
     const std::string text = ModelFileText(model);
@@ -80,6 +83,7 @@ class FitCommand : public Command {
  private:
   std::string data_, model_, effects_, hyper_ = "ml", out_;
   FitOptions options_;
+  RobotFlags robot_;
   int max_kernel_rows_ = kDefaultMaxKernelRows;
   bool quiet_ = false;
 };

@@ -18,16 +18,20 @@ std::vector<std::string> RegressorMap::component_names() const {
   return names;
 }
 
-void RegressorMap::EvaluateComponent(int component, const ConstVectorRef& x, MatrixRef psi) const {
-  // The default components are the blocks. blocks() allocates, which the contract of this
-  // default forbids only for overriding maps on a real-time path; none calls it there.
+void RegressorMap::Evaluate(const ConstVectorRef& x, MatrixRef psi) const {
+  const std::unique_ptr<Scratch> scratch = MakeScratch();
+  Evaluate(x, psi, scratch.get());
+}
+
+void RegressorMap::EvaluateComponent(int component, const ConstVectorRef& x, MatrixRef psi,
+                                     Scratch* scratch) const {
   const std::vector<FeatureBlock> all = blocks();
   if (component < 0 || component >= static_cast<int>(all.size())) {
     throw std::invalid_argument("RegressorMap::EvaluateComponent: component " +
                                 std::to_string(component) + " out of range [0, " +
                                 std::to_string(all.size()) + ")");
   }
-  Evaluate(x, psi);
+  Evaluate(x, psi, scratch);
   const FeatureBlock& block = all[static_cast<size_t>(component)];
   psi.leftCols(block.begin).setZero();
   psi.rightCols(dim() - block.begin - block.size).setZero();

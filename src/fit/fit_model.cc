@@ -13,6 +13,8 @@
 #include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/hyper/hyperparameter_layout.h"
+#include "structgp/hyper/marginal_likelihood.h"
+#include "structgp/rigid_body/physical_consistency.h"
 #include "structgp/internal/text.h"
 #include "structgp/model/sufficient_statistics.h"
 
@@ -263,6 +265,37 @@ bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameter
   return fit->Report(s.BriefReport());
 }
 
+// rbd models by evidence: the per-joint statistics of the regressor over every row, then LBFGS
+// over the block scales and the noise level of each joint.
+bool RegressorByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
+                         std::string* failure) {
+  const RigidBodyRegressorMap& map = *fit->model()->regressor_map();
+  if (!fit->Report(Format("accumulating the rigid-body regressor's statistics over %d rows "
+                          "(P = %d parameters)",
+                          static_cast<int>(X.rows()), map.dim()))) {
+    return false;
+  }
+  RegressorStatistics stats(map.dim(), map.num_outputs());
+  stats.Accumulate(map, X, Y);
+  if (!fit->Report("maximising the evidence over the prior widths and each joint's noise (Ceres "
+                   "LBFGS)")) {
+    return false;
+  }
+  const MaximumLikelihoodSummary s =
+      FitRegressorHyperparameters(map, stats, fit->EvidenceOptions(), h);
+  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
+    fit->MarkAborted();
+    return false;
+  }
+  if (!s.usable()) {
+    *failure = "type-II maximum likelihood: " + s.message;
+    return false;
+  }
+  fit->summary().hyperparameter_rows = static_cast<int>(X.rows());
+  fit->TakeEvidenceSummary(s);
+  return fit->Report(s.BriefReport());
+}
+
 void CheckData(const RobotModel& model, const ConstMatrixRef& states, const ConstMatrixRef& torques,
                const ConstVectorRef& t) {
   const int N = model.num_joints();
@@ -397,7 +430,13 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
   if (model == nullptr) throw std::invalid_argument("FitModel: model is null");
   CheckData(*model, states, torques, t);
-  const bool kernel_model = model->feature_map() == nullptr;
+  const bool regressor_model = model->regressor_map() != nullptr;
+  const bool kernel_model = model->feature_map() == nullptr && !regressor_model;
+  if (options.method == HyperparameterMethod::kCrossValidation && regressor_model) {
+    throw std::invalid_argument(
+        "cross-validation is not available for '" + ToString(model->spec()) +
+        "' (use type-II maximum likelihood, the default, or fixed hyper-parameters)");
+  }
   if (options.method == HyperparameterMethod::kCrossValidation && kernel_model) {
     throw std::invalid_argument(
         "cross-validation needs a model with an explicit feature map (motor, or pol up to 3 "
@@ -418,8 +457,9 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   bool go_on = true;
   switch (options.method) {
     case HyperparameterMethod::kEvidence:
-      go_on = kernel_model ? KernelByEvidence(X, Y, &fit, &h, &failure)
-                           : FeatureMapByEvidence(X, Y, &fit, &h, &failure);
+      go_on = regressor_model ? RegressorByEvidence(X, Y, &fit, &h, &failure)
+              : kernel_model  ? KernelByEvidence(X, Y, &fit, &h, &failure)
+                              : FeatureMapByEvidence(X, Y, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kCrossValidation:
       go_on = FeatureMapByCrossValidation(X, Y, &fit, &h, &failure);
@@ -465,6 +505,58 @@ FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,
   return out;
 }
 
+namespace {
+
+// FitReport of an rbd model: the prior widths, each joint's noise, the friction and effect
+// coefficients, how many rigid-body directions the data identified, and whether the identified
+// inertial parameters are physically consistent.
+void ReportRegressor(const RobotModel& model, const FitSummary& summary, std::ostream& os) {
+  const RigidBodyRegressorMap& map = *model.regressor_map();
+  const RegressorGP& gp = *model.gp().regressor();
+  const Hyperparameters& h = model.hyperparameters();
+  const int N = model.num_joints();
+  const int P = map.num_rigid_body_parameters();
+  os << "parameters   P = " << map.dim() << " (" << P << " rigid-body of the chain "
+     << map.chain().root() << " -> " << map.chain().tip() << ", regressor form)\n";
+  os << "hyper        " << summary.method_description
+     << Format(", %.2f s", summary.total_seconds) << "\n";
+  for (const auto& note : summary.notes) os << "             " << note << "\n";
+  std::vector<std::vector<std::string>> rows = {{"parameter", "value"}};
+  const auto blocks = map.blocks();
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    rows.push_back({"log_block_scale_" + blocks[b].name,
+                    Number(h.log_block_scale[static_cast<Eigen::Index>(b)])});
+  }
+  os << Table(rows, 4);
+  os << "noise std   ";
+  for (int j = 0; j < N; ++j) {
+    os << Format(" tau%d %.4g", j + 1, std::exp(h.log_noise_std + h.log_output_scale[j]));
+  }
+  os << "  (one per joint)\n";
+  os << "log marginal likelihood " << Format("%.6g", gp.LogMarginalLikelihood()) << " nats\n";
+  os << "identified   " << gp.IdentifiedDirections() << " of " << map.dim()
+     << " parameter directions are determined by the data better than by the prior (the rest, "
+        "e.g. inertial combinations the motion does not excite, stay at the URDF's values)\n";
+  const Vector theta = gp.parameters();
+  const Vector std_dev = gp.ParameterStd();
+  const PhysicalConsistency consistency =
+      CheckPhysicalConsistency(map.chain(), theta.head(P), 200, 1);
+  os << "consistency  " << consistency.Summary() << "\n";
+  const auto names = model.ParametricFeatureNames();
+  if (!names.empty()) {
+    os << "coefficients (posterior mean +- std):\n";
+    std::vector<std::vector<std::string>> coef = {{"feature", "value"}};
+    const std::vector<std::string> all = map.parameter_names();
+    for (int k = P; k < map.dim(); ++k) {
+      coef.push_back({all[static_cast<size_t>(k)],
+                      Format("%.4g +- %.2g", theta[k], std_dev[k])});
+    }
+    os << Table(coef, 4);
+  }
+}
+
+}  // namespace
+
 std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   std::ostringstream os;
   const int N = model.num_joints();
@@ -473,6 +565,10 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
     return os.str();
   }
   const GaussianProcess& gp = model.gp();
+  if (model.regressor_map()) {
+    ReportRegressor(model, summary, os);
+    return os.str();
+  }
   if (model.feature_map()) {
     os << "features     D = " << model.feature_map()->dim() << " (" << ToString(gp.form())
        << " form)\n";

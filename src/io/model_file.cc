@@ -164,6 +164,7 @@ Form ParseForm(const std::string& text, bool* ok) {
   if (text == ToString(Form::kAuto)) return Form::kAuto;
   if (text == ToString(Form::kWeightSpace)) return Form::kWeightSpace;
   if (text == ToString(Form::kFunctionSpace)) return Form::kFunctionSpace;
+  if (text == ToString(Form::kRegressor)) return Form::kRegressor;
   *ok = false;
   return Form::kAuto;
 }
@@ -395,6 +396,18 @@ std::string ModelFileText(const RobotModel& model) {
   options["broad_prior_std"] = model.options().broad_prior_std;
   options["max_explicit_features"] = model.options().max_explicit_features;
   doc["options"] = options;
+  if (const auto& chain = model.options().rigid_body) {
+    // The robot itself: the URDF document, which chain of it, and the parameters the model's
+    // prior is centred on.
+    Json robot;
+    robot["urdf"] = chain->urdf();
+    robot["source"] = chain->source();
+    robot["root"] = chain->root();
+    robot["tip"] = chain->tip();
+    robot["gravity"] = NumberArray(Vector(chain->gravity()));
+    robot["parameters"] = EncodeMatrix(chain->parameters(), false);
+    doc["rigid_body"] = robot;
+  }
   doc["num_joints"] = model.num_joints();
   doc["uses_time"] = model.uses_time();
   doc["input_dim"] = model.input_dim();
@@ -415,7 +428,21 @@ std::string ModelFileText(const RobotModel& model) {
   const double lml = gp.LogMarginalLikelihood();
   if (std::isfinite(lml)) doc["log_marginal_likelihood"] = lml;
 
-  if (const WeightSpaceGP* ws = gp.weight_space()) {
+  if (const RegressorGP* regressor = gp.regressor()) {
+    const RegressorGPState s = regressor->State();
+    Json g;
+    g["prior_mean"] = EncodeMatrix(s.prior_mean, false);
+    g["prior_variance"] = EncodeMatrix(s.prior_variance, false);
+    g["noise_variance"] = EncodeMatrix(s.noise_variance, false);
+    Json gram = Json::array();
+    for (const Matrix& G : s.statistics.gram) gram.push_back(EncodeMatrix(G, false));
+    g["gram"] = gram;
+    g["cross"] = EncodeMatrix(s.statistics.cross, false);
+    g["y_squared"] = EncodeMatrix(s.statistics.y_squared, false);
+    g["count"] = s.statistics.count;
+    doc["num_samples"] = static_cast<long long>(s.statistics.count);
+    doc["regressor"] = g;
+  } else if (const WeightSpaceGP* ws = gp.weight_space()) {
     const WeightSpaceGPState s = ws->State();
     RequireFiniteForSave("weight-space state", s.covariance_factor);
     RequireFiniteForSave("weight-space state", s.weights);
@@ -529,6 +556,23 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
       o.contains("max_explicit_features")
           ? static_cast<int>(r.Integer(o, "options", "max_explicit_features", 1, 1 << 30))
           : (1 << 30);
+  if (spec.base == BaseModel::kRbd) {
+    const Json& robot = r.Get(doc, "", "rigid_body");
+    UrdfOptions urdf;
+    urdf.root = r.String(robot, "rigid_body", "root");
+    urdf.tip = r.String(robot, "rigid_body", "tip");
+    const Vector gravity = r.Numbers(robot, "rigid_body", "gravity");
+    if (gravity.size() != 3) r.FailField("rigid_body.gravity", "expected 3 numbers");
+    urdf.gravity = gravity;
+    try {
+      const RigidBodyChain chain = RigidBodyChain::FromUrdfString(
+          r.String(robot, "rigid_body", "urdf"), urdf, r.String(robot, "rigid_body", "source"));
+      options.rigid_body = std::make_shared<const RigidBodyChain>(
+          chain.WithParameters(r.DecodedVector(robot, "rigid_body", "parameters")));
+    } catch (const std::invalid_argument& e) {
+      r.FailField("rigid_body", e.what());
+    }
+  }
   const int num_joints = static_cast<int>(r.Integer(doc, "", "num_joints", 1, 1000));
   const bool uses_time = r.Boolean(doc, "", "uses_time");
   const int input_dim = static_cast<int>(r.Integer(doc, "", "input_dim", 1, 1 << 20));
@@ -536,7 +580,7 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
   bool active_ok = false;
   const Form active = ParseForm(r.String(doc, "", "form"), &active_ok);
   if (!active_ok || active == Form::kAuto) {
-    r.FailField("form", "expected 'weight_space' or 'function_space'");
+    r.FailField("form", "expected 'weight_space', 'function_space' or 'regressor'");
   }
 
   Hyperparameters hyper;
@@ -578,6 +622,26 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
       state.hyperparameters.shape = kernel_parameters;
     }
 
+    if (active == Form::kRegressor) {
+      const std::string p = "regressor";
+      const Json& g = r.Get(doc, "", "regressor");
+      RegressorGPState& rs = state.regressor;
+      rs.prior_mean = r.DecodedVector(g, p, "prior_mean");
+      rs.prior_variance = r.DecodedVector(g, p, "prior_variance");
+      rs.noise_variance = r.DecodedVector(g, p, "noise_variance");
+      const Json& gram = r.Get(g, p, "gram");
+      if (!gram.is_array()) r.FailField("regressor.gram", "expected an array of matrices");
+      for (size_t j = 0; j < gram.size(); ++j) {
+        Json holder;
+        holder["g"] = gram[j];
+        rs.statistics.gram.push_back(
+            r.DecodedMatrix(holder, "regressor.gram[" + std::to_string(j) + "]", "g"));
+      }
+      rs.statistics.cross = r.DecodedMatrix(g, p, "cross");
+      rs.statistics.y_squared = r.DecodedVector(g, p, "y_squared");
+      rs.statistics.count = r.Number(g, p, "count");
+      return RobotModel::FromState(state);
+    }
     if (active == Form::kWeightSpace) {
       if (!probe.feature_map()) r.Fail("inconsistent model file: a kernel model in weight space");
       const std::string p = "weight_space";

@@ -17,6 +17,8 @@ const char* ToString(Form form) {
       return "weight_space";
     case Form::kFunctionSpace:
       return "function_space";
+    case Form::kRegressor:
+      return "regressor";
   }
   return "unknown";
 }
@@ -82,6 +84,49 @@ GaussianProcess::GaussianProcess(const Kernel& kernel, const Hyperparameters& hy
                                                hyper_.output_scales());
 }
 
+namespace {
+
+void ValidateRegressorHyperparameters(const Hyperparameters& hyper, const RegressorMap& map) {
+  hyper.Validate(0, static_cast<Eigen::Index>(map.blocks().size()), map.num_outputs(),
+                 "regressor Hyperparameters");
+}
+
+Vector RegressorNoise(const Hyperparameters& hyper) {
+  return (2.0 * (hyper.log_output_scale.array() + hyper.log_noise_std)).exp().matrix();
+}
+
+}  // namespace
+
+GaussianProcess::GaussianProcess(std::shared_ptr<const RegressorMap> map,
+                                 const Hyperparameters& hyper, const BatchFitOptions& batch)
+    : hyper_(hyper),
+      num_outputs_(map ? map->num_outputs() : 0),
+      requested_(Form::kRegressor),
+      active_(Form::kRegressor),
+      regressor_map_(std::move(map)),
+      batch_(batch) {
+  ValidateBatch(batch_);
+  if (!regressor_map_) throw std::invalid_argument("GaussianProcess: null regressor map");
+  ValidateRegressorHyperparameters(hyper_, *regressor_map_);
+  regressor_scratch_ = regressor_map_->MakeScratch() != nullptr;
+}
+
+GaussianProcess GaussianProcess::FromRegressor(std::shared_ptr<const RegressorMap> map,
+                                               const Hyperparameters& hyper,
+                                               const BatchFitOptions& batch,
+                                               RegressorGP posterior) {
+  GaussianProcess gp(std::move(map), hyper, batch);
+  RequireSize("GaussianProcess::FromRegressor posterior parameters", posterior.dim(),
+              gp.regressor_map_->dim());
+  RequireSize("GaussianProcess::FromRegressor posterior outputs", posterior.num_outputs(),
+              gp.num_outputs_);
+  const auto rows = static_cast<Eigen::Index>(posterior.statistics().count);
+  gp.regressor_gp_ = std::make_unique<RegressorGP>(std::move(posterior));
+  gp.data_rows_ = rows;
+  gp.fit_rows_ = rows;
+  return gp;
+}
+
 GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMap> map,
                                                  const Hyperparameters& hyper, int num_outputs,
                                                  Form form, const BatchFitOptions& batch,
@@ -102,7 +147,10 @@ GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMa
   return gp;
 }
 
-int GaussianProcess::input_dim() const { return map_ ? map_->input_dim() : kernel_->input_dim(); }
+int GaussianProcess::input_dim() const {
+  if (regressor_map_) return regressor_map_->input_dim();
+  return map_ ? map_->input_dim() : kernel_->input_dim();
+}
 
 Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   RequireSize("GaussianProcess::Fit X", X.cols(), input_dim(), "columns");
@@ -110,6 +158,19 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   RequireSize("GaussianProcess::Fit Y", Y.rows(), X.rows(), "rows (as in X)");
   RequireFinite("GaussianProcess::Fit X", X);
   RequireFinite("GaussianProcess::Fit Y", Y);
+  if (regressor_map_) {
+    RegressorStatistics stats(regressor_map_->dim(), num_outputs_);
+    stats.Accumulate(*regressor_map_, X, Y, batch_.chunk_rows);
+    auto model = std::make_unique<RegressorGP>(
+        regressor_map_->prior_mean(), RegressorPriorVariance(*regressor_map_, hyper_.log_block_scale),
+        RegressorNoise(hyper_));
+    const Status status = model->Fit(stats);
+    if (status != Status::kOk) return status;
+    regressor_gp_ = std::move(model);
+    data_rows_ = X.rows();
+    fit_rows_ = X.rows();
+    return Status::kOk;
+  }
   Matrix Xs, Ys;
   const bool subset = EvenlySpaced(X, Y, batch_.max_kernel_rows, &Xs, &Ys);
   const Eigen::Index kernel_rows = subset ? Xs.rows() : X.rows();
@@ -156,6 +217,11 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
 
 GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
   Workspace workspace;
+  if (regressor_gp_) {
+    workspace.regressor.resize(num_outputs_, regressor_map_->dim());
+    workspace.regressor_gp = regressor_gp_->MakeWorkspace();
+    workspace.regressor_scratch = regressor_map_->MakeScratch();
+  }
   if (function_space_) workspace.function_space = function_space_->MakeWorkspace();
   if (weight_space_) {
     workspace.features.resize(map_->dim());
@@ -166,6 +232,11 @@ GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
 
 Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
                                 Workspace& workspace) const {
+  if (regressor_map_) {
+    if (!RegressorInputOk(x, workspace)) return Status::kInvalidInput;
+    regressor_map_->Evaluate(x, workspace.regressor, workspace.regressor_scratch.get());
+    return regressor_gp_->Predict(workspace.regressor, mean);
+  }
   if (function_space_) return function_space_->Predict(x, mean, workspace.function_space);
   if (!weight_space_ || x.size() != input_dim() || !x.allFinite() ||
       workspace.features.size() != map_->dim()) {
@@ -178,6 +249,12 @@ Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
 Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                                             VectorRef latent_variance, VectorRef noisy_variance,
                                             Workspace& workspace) const {
+  if (regressor_map_) {
+    if (!RegressorInputOk(x, workspace)) return Status::kInvalidInput;
+    regressor_map_->Evaluate(x, workspace.regressor, workspace.regressor_scratch.get());
+    return regressor_gp_->PredictWithVariance(workspace.regressor, mean, latent_variance,
+                                              noisy_variance, workspace.regressor_gp);
+  }
   if (function_space_) {
     return function_space_->PredictWithVariance(x, mean, latent_variance, noisy_variance,
                                                 workspace.function_space);
@@ -203,7 +280,32 @@ Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef m
   return PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace);
 }
 
+bool GaussianProcess::RegressorInputOk(const ConstVectorRef& x, const Workspace& workspace) const {
+  return regressor_gp_ && x.size() == input_dim() && x.allFinite() &&
+         workspace.regressor.rows() == num_outputs_ &&
+         workspace.regressor.cols() == regressor_map_->dim() &&
+         workspace.regressor_gp.v.size() == regressor_map_->dim() &&
+         (workspace.regressor_scratch != nullptr) == regressor_scratch_;
+}
+
 Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
+  if (regressor_map_) {
+    if (!regressor_gp_ || x.size() != input_dim() || !x.allFinite() || y.size() != num_outputs_ ||
+        !y.allFinite()) {
+      return Status::kInvalidInput;
+    }
+    RegressorStatistics stats = regressor_gp_->statistics();
+    stats.Accumulate(*regressor_map_, x.transpose(), y.transpose());
+    auto model = std::make_unique<RegressorGP>(regressor_gp_->prior_mean(),
+                                               regressor_gp_->prior_variance(),
+                                               regressor_gp_->noise_variance());
+    const Status status = model->Fit(stats);
+    if (status != Status::kOk) return status;
+    regressor_gp_ = std::move(model);
+    ++data_rows_;
+    ++fit_rows_;
+    return Status::kOk;
+  }
   if (function_space_) return function_space_->Add(x, y);
   if (!weight_space_ || x.size() != input_dim() || !x.allFinite()) return Status::kInvalidInput;
   map_->Evaluate(x, phi_);
@@ -211,6 +313,10 @@ Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
 }
 
 double GaussianProcess::LogMarginalLikelihood() const {
+  if (regressor_map_) {
+    if (!regressor_gp_) throw std::logic_error("GaussianProcess: not fitted");
+    return regressor_gp_->LogMarginalLikelihood();
+  }
   if (function_space_) return function_space_->LogMarginalLikelihood();
   if (!weight_space_) throw std::logic_error("GaussianProcess: not fitted");
   return weight_space_->LogMarginalLikelihood();

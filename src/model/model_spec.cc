@@ -49,6 +49,7 @@ const char* ToString(BaseModel base) {
     case BaseModel::kRbf: return "rbf";
     case BaseModel::kRbfs: return "rbfs";
     case BaseModel::kMotor: return "motor";
+    case BaseModel::kRbd: return "rbd";
   }
   return "unknown";
 }
@@ -68,7 +69,8 @@ ModelSpec ParseModelSpec(const std::string& model) {
     spec.friction = true;
   }
   bool found = false;
-  for (BaseModel b : {BaseModel::kPol, BaseModel::kRbf, BaseModel::kRbfs, BaseModel::kMotor}) {
+  for (BaseModel b :
+       {BaseModel::kPol, BaseModel::kRbf, BaseModel::kRbfs, BaseModel::kMotor, BaseModel::kRbd}) {
     if (base == ToString(b)) {
       spec.base = b;
       found = true;
@@ -76,7 +78,7 @@ ModelSpec ParseModelSpec(const std::string& model) {
   }
   if (!found) {
     throw std::invalid_argument("model '" + model + "': unknown base '" + base +
-                                "' (expected one of pol, rbf, rbfs, motor, each optionally +fri)");
+                                "' (expected one of pol, rbf, rbfs, motor, rbd, each optionally +fri)");
   }
   return spec;
 }

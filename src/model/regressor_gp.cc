@@ -51,16 +51,14 @@ void RegressorStatistics::Accumulate(const RegressorMap& map, const ConstMatrixR
   // Rows of output j for a chunk of samples, so that each G_j grows by one rank-k update.
   std::vector<Matrix> rows(static_cast<size_t>(N));
   Matrix psi(N, P);
+  const std::unique_ptr<RegressorMap::Scratch> scratch = map.MakeScratch();
   RegressorStatistics sum(P, N);
   for (Eigen::Index start = 0; start < X.rows(); start += chunk_rows) {
     const Eigen::Index k = std::min(chunk_rows, X.rows() - start);
     for (auto& r : rows) r.resize(k, P);
     for (Eigen::Index i = 0; i < k; ++i) {
-      map.Evaluate(X.row(start + i).transpose(), psi);
+      map.Evaluate(X.row(start + i).transpose(), psi, scratch.get());
       for (int j = 0; j < N; ++j) rows[static_cast<size_t>(j)].row(i) = psi.row(j);
-    }
-    if (!psi.allFinite()) {
-      throw std::invalid_argument("RegressorStatistics::Accumulate: the regressor is not finite");
     }
     for (int j = 0; j < N; ++j) {
       const Matrix& R = rows[static_cast<size_t>(j)];

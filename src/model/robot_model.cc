@@ -39,6 +39,10 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
     throw std::invalid_argument("RobotModelOptions.max_explicit_features must be >= 1, got " +
                                 std::to_string(options_.max_explicit_features));
   }
+  if (spec_.base == BaseModel::kRbd) {
+    BuildRegressor();
+    return;
+  }
   const bool pol_by_formula = spec_.base == BaseModel::kPol &&
                               options_.form != Form::kWeightSpace &&
                               (num_joints_ > kMaxPolJoints ||
@@ -119,6 +123,35 @@ void RobotModel::BuildFeatureMap() {
   map_ = parts.size() == 1 ? parts.front() : std::make_shared<SumFeatureMap>(parts);
 }
 
+void RobotModel::BuildRegressor() {
+  if (!options_.rigid_body) {
+    throw std::invalid_argument(
+        "model 'rbd' needs the robot's kinematic chain (RobotModelOptions.rigid_body; at the "
+        "command line --urdf FILE)");
+  }
+  if (options_.rigid_body->num_joints() != num_joints_) {
+    throw std::invalid_argument(
+        "model 'rbd': the chain " + options_.rigid_body->root() + " -> " +
+        options_.rigid_body->tip() + " of " + options_.rigid_body->source() + " has " +
+        std::to_string(options_.rigid_body->num_joints()) + " moving joints, the data have " +
+        std::to_string(num_joints_));
+  }
+  RigidBodyRegressorOptions options;
+  options.friction = spec_.friction;
+  options.friction_width = options_.friction_width;
+  options.with_time = uses_time_;
+  for (const auto& e : spec_.effects) {
+    options.effects.push_back(
+        RegressorEffect{ToString(e), std::shared_ptr<const Effect>(MakeEffect(e.name, e.params)),
+                        e.joints});
+  }
+  regressor_ = std::make_shared<RigidBodyRegressorMap>(*options_.rigid_body, options);
+  const std::vector<std::string> names = regressor_->parameter_names();
+  for (int k = regressor_->num_rigid_body_parameters(); k < regressor_->dim(); ++k) {
+    parametric_names_.emplace_back(names[static_cast<size_t>(k)], k);
+  }
+}
+
 void RobotModel::BuildKernel() {
   const int N = num_joints_;
   std::unique_ptr<Kernel> base;
@@ -145,7 +178,20 @@ void RobotModel::BuildKernel() {
 Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) const {
   RequireSize("RobotModel::DefaultHyperparameters Y", Y.cols(), num_joints_, "columns (joints)");
   Hyperparameters h;
-  if (map_) {
+  if (regressor_) {
+    // The rigid-body prior at its own scale (feature/rigid_body_regressor_map.h); friction and
+    // effects broad, relative to the largest torque spread.
+    const auto blocks = regressor_->blocks();
+    double spread = 0.0;
+    for (int j = 0; j < num_joints_; ++j) {
+      spread = std::max(spread, Y.rows() > 0 ? std::sqrt(Y.col(j).squaredNorm() / Y.rows()) : 0.0);
+    }
+    h.log_block_scale = Vector::Constant(static_cast<Eigen::Index>(blocks.size()),
+                                         std::log(options_.broad_prior_std *
+                                                  (spread > 1e-12 ? spread : 1.0)));
+    h.log_block_scale[0] = 0.0;
+    h.log_output_scale = Vector::Zero(num_joints_);
+  } else if (map_) {
     h = structgp::DefaultHyperparameters(*map_, num_joints_);
     // Broad priors on everything that is not the base's own structure.
     const auto blocks = map_->blocks();
@@ -183,7 +229,9 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   RequireSize("RobotModel::Fit X", X.cols(), input_dim(), "columns");
   RequireSize("RobotModel::Fit Y", Y.cols(), num_joints_, "columns (joints)");
   std::unique_ptr<GaussianProcess> gp;
-  if (map_) {
+  if (regressor_) {
+    gp = std::make_unique<GaussianProcess>(regressor_, hyper, options_.batch);
+  } else if (map_) {
     gp = std::make_unique<GaussianProcess>(map_, hyper, num_joints_, options_.form,
                                            options_.batch);
   } else {
@@ -205,7 +253,9 @@ RobotModelState RobotModel::State() const {
   state.options = options_;
   state.hyperparameters = hyper_;
   state.form = fitted_gp.form();
-  if (const WeightSpaceGP* ws = fitted_gp.weight_space()) {
+  if (const RegressorGP* regressor = fitted_gp.regressor()) {
+    state.regressor = regressor->State();
+  } else if (const WeightSpaceGP* ws = fitted_gp.weight_space()) {
     state.weight_space = ws->State();
   } else {
     state.inputs = fitted_gp.function_space()->inputs();
@@ -218,6 +268,16 @@ RobotModel RobotModel::FromState(const RobotModelState& state) {
   RobotModel model(state.spec, state.num_joints, state.options);
   const int N = model.num_joints_;
   const Hyperparameters& hyper = state.hyperparameters;
+  if (state.form == Form::kRegressor || model.regressor_) {
+    if (state.form != Form::kRegressor || !model.regressor_) {
+      throw std::invalid_argument("RobotModel::FromState: model '" + ToString(state.spec) +
+                                  "' and form " + ToString(state.form) + " do not go together");
+    }
+    model.gp_ = std::make_unique<GaussianProcess>(GaussianProcess::FromRegressor(
+        model.regressor_, hyper, state.options.batch, RegressorGP::FromState(state.regressor)));
+    model.hyper_ = hyper;
+    return model;
+  }
   if (state.form == Form::kWeightSpace) {
     if (!model.map_) {
       throw std::invalid_argument("RobotModel::FromState: model '" + ToString(state.spec) +
@@ -313,6 +373,7 @@ void RobotModel::PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* late
 }
 
 std::vector<std::string> RobotModel::ComponentNames() const {
+  if (regressor_) return regressor_->component_names();
   std::vector<std::string> names;
   for (const auto& p : parts_) names.push_back(p.name);
   return names;
@@ -320,6 +381,31 @@ std::vector<std::string> RobotModel::ComponentNames() const {
 
 Status RobotModel::PredictComponents(const ConstVectorRef& x,
                                      std::vector<Component>* components) const {
+  if (regressor_) {
+    if (!gp_ || gp_->regressor() == nullptr || x.size() != input_dim() || !x.allFinite()) {
+      return Status::kInvalidInput;
+    }
+    const RegressorGP& gp = *gp_->regressor();
+    const int N = num_joints_;
+    Matrix psi(N, regressor_->dim());
+    Vector noisy(N);
+    RegressorGP::Workspace workspace = gp.MakeWorkspace();
+    const std::unique_ptr<RegressorMap::Scratch> scratch = regressor_->MakeScratch();
+    const std::vector<std::string> names = regressor_->component_names();
+    components->clear();
+    for (size_t c = 0; c < names.size(); ++c) {
+      Component component;
+      component.name = names[c];
+      component.mean.resize(N);
+      component.latent_variance.resize(N);
+      regressor_->EvaluateComponent(static_cast<int>(c), x, psi, scratch.get());
+      const Status status = gp.PredictWithVariance(psi, component.mean, component.latent_variance,
+                                                   noisy, workspace);
+      if (status != Status::kOk) return status;
+      components->push_back(std::move(component));
+    }
+    return Status::kOk;
+  }
   if (!gp_ || !map_ || gp_->weight_space() == nullptr || x.size() != input_dim() ||
       !x.allFinite()) {
     return Status::kInvalidInput;
@@ -348,6 +434,17 @@ std::pair<double, double> RobotModel::Coefficient(const std::string& feature, in
   if (joint < 1 || joint > num_joints_) {
     throw std::invalid_argument("Coefficient: joint " + std::to_string(joint) +
                                 " out of range 1.." + std::to_string(num_joints_));
+  }
+  if (gp_ && gp_->regressor() != nullptr) {
+    // Shared parameters: the name says which joint a friction or effect column acts on.
+    for (const auto& [name, index] : parametric_names_) {
+      if (name == feature) {
+        const RegressorGP& gp = *gp_->regressor();
+        const Matrix covariance = gp.ParameterCovariance();
+        return {gp.parameters()[index], std::sqrt(std::max(0.0, covariance(index, index)))};
+      }
+    }
+    throw std::invalid_argument("Coefficient: the model has no feature '" + feature + "'");
   }
   if (!gp_ || gp_->weight_space() == nullptr) {
     throw std::invalid_argument("Coefficient: needs a fitted weight-space model");

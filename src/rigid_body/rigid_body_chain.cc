@@ -63,6 +63,7 @@ struct RigidBodyChain::Kinematics {
   std::vector<int> moving_segments;
   std::vector<std::string> joint_names, link_names;
   std::string root, tip, source;
+  std::string urdf;  // the document it was read from
   Eigen::Vector3d gravity;
 };
 
@@ -141,6 +142,7 @@ RigidBodyChain RigidBodyChain::FromUrdfString(const std::string& xml, const Urdf
   kinematics->root = std::move(read.root);
   kinematics->tip = std::move(read.tip);
   kinematics->source = source;
+  kinematics->urdf = xml;
   kinematics->gravity = options.gravity;
 
   auto model = std::make_shared<Model>();
@@ -164,6 +166,7 @@ const std::vector<std::string>& RigidBodyChain::link_names() const {
 const std::string& RigidBodyChain::root() const { return model_->kinematics->root; }
 const std::string& RigidBodyChain::tip() const { return model_->kinematics->tip; }
 const std::string& RigidBodyChain::source() const { return model_->kinematics->source; }
+const std::string& RigidBodyChain::urdf() const { return model_->kinematics->urdf; }
 const Eigen::Vector3d& RigidBodyChain::gravity() const { return model_->kinematics->gravity; }
 int RigidBodyChain::num_parameters() const { return 11 * num_joints(); }
 

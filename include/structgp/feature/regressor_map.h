@@ -15,9 +15,12 @@
 /// has weights of its own, so outputs share no parameter; here the outputs are coupled through
 /// theta, and each output may have its own noise level.
 ///
-/// Invariants a regressor keeps: its sizes never change; Evaluate is a pure function of x,
-/// does not allocate and is safe to call concurrently; blocks() tile [0, dim()) in order; the
-/// components' matrices add up to Psi(x).
+/// Invariants a regressor keeps: its sizes never change; Evaluate is a pure function of x and
+/// safe to call concurrently, each thread with its own Scratch (MakeScratch: the solvers of a
+/// rigid-body chain, say), and with it does not allocate; blocks() tile [0, dim()) in order;
+/// the components' matrices add up to Psi(x).
+
+#include <memory>
 
 #include <string>
 #include <vector>
@@ -37,8 +40,19 @@ class RegressorMap {
   virtual int num_outputs() const = 0;
   /// Number of parameters P (columns of Psi).
   virtual int dim() const = 0;
-  /// Psi(x) into psi (num_outputs() x dim()). Must not allocate.
-  virtual void Evaluate(const ConstVectorRef& x, MatrixRef psi) const = 0;
+  /// Per-thread scratch memory of the evaluations, made by MakeScratch (null when a map needs
+  /// none, the default).
+  class Scratch {
+   public:
+    virtual ~Scratch() = default;
+  };
+  virtual std::unique_ptr<Scratch> MakeScratch() const { return nullptr; }
+
+  /// Psi(x) into psi (num_outputs() x dim()), with scratch from this map's MakeScratch. Must
+  /// not allocate.
+  virtual void Evaluate(const ConstVectorRef& x, MatrixRef psi, Scratch* scratch) const = 0;
+  /// The same with scratch made for the call (allocates when the map needs scratch).
+  void Evaluate(const ConstVectorRef& x, MatrixRef psi) const;
 
   /// Column blocks that share one prior scale, in order ("rigid_body", "friction", effects).
   virtual std::vector<FeatureBlock> blocks() const = 0;
@@ -55,9 +69,10 @@ class RegressorMap {
   /// "friction", effects). Default: the block names.
   virtual std::vector<std::string> component_names() const;
   /// The part of Psi(x) that belongs to component c, into psi (N x P; the sum over all
-  /// components is Psi(x)). Default: the columns of block c, zero elsewhere. Must not
-  /// allocate.
-  virtual void EvaluateComponent(int component, const ConstVectorRef& x, MatrixRef psi) const;
+  /// components is Psi(x)). Default: the columns of block c, zero elsewhere (allocates: not for
+  /// a real-time path). Throws std::invalid_argument for a component out of range.
+  virtual void EvaluateComponent(int component, const ConstVectorRef& x, MatrixRef psi,
+                                 Scratch* scratch) const;
 };
 
 /// The prior variances lambda (dim()) of a regressor for one log scale per block.

@@ -6,7 +6,8 @@
 /// (WeightSpaceGP on phi(x), O(D^3) batch, O(D^2) per sample) when the kernel has a finite
 /// feature map with D <= m, the function-space form (KernelGP, O(m^3) batch, O(m^2) per
 /// sample) otherwise or when the kernel has no finite map. Both forms give the same
-/// posterior; the choice can be forced.
+/// posterior; the choice can be forced. A third form serves models whose outputs share their
+/// parameters through a regressor (RegressorMap: the rigid-body regressor of `rbd`): RegressorGP.
 
 #include <memory>
 
@@ -16,7 +17,9 @@
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
+#include "structgp/feature/regressor_map.h"
 #include "structgp/model/kernel_gp.h"
+#include "structgp/model/regressor_gp.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 
@@ -26,9 +29,10 @@ enum class Form {
   kAuto,           ///< weight space when D <= m (number of training samples), else function space
   kWeightSpace,    ///< always the feature form (requires a feature map)
   kFunctionSpace,  ///< always the kernel form
+  kRegressor,      ///< a RegressorMap's shared parameters (RegressorGP); the only form of one
 };
 
-/// "auto", "weight_space", "function_space".
+/// "auto", "weight_space", "function_space", "regressor".
 const char* ToString(Form form);
 
 /// Default largest number of rows the function-space form is fitted on. Its batch fit needs
@@ -62,6 +66,18 @@ class GaussianProcess {
   /// Throws std::invalid_argument when hyper does not match the kernel and num_outputs.
   GaussianProcess(const Kernel& kernel, const Hyperparameters& hyper, int num_outputs,
                   const BatchFitOptions& batch = BatchFitOptions());
+
+  /// A model of a regressor's shared parameters (RegressorGP): hyper has no shape, one log
+  /// block scale per block of the map (RegressorPriorVariance) and the noise of output j is
+  /// exp(log_noise_std + log_output_scale_j) (see hyper/marginal_likelihood.h,
+  /// RegressorEvidenceObjective). form() is kRegressor. Throws std::invalid_argument when
+  /// hyper does not match the map.
+  GaussianProcess(std::shared_ptr<const RegressorMap> map, const Hyperparameters& hyper,
+                  const BatchFitOptions& batch = BatchFitOptions());
+  /// A regressor model in the given posterior (RegressorGP::FromState), without a fit.
+  static GaussianProcess FromRegressor(std::shared_ptr<const RegressorMap> map,
+                                       const Hyperparameters& hyper, const BatchFitOptions& batch,
+                                       RegressorGP posterior);
 
   /// A weight-space model in the given posterior (WeightSpaceGP::FromState, say), without a
   /// fit: form() is kWeightSpace, data_rows() = fit_rows() = rows. The posterior must have
@@ -98,6 +114,9 @@ class GaussianProcess {
     Vector features;                         ///< phi(x), D (weight space)
     WeightSpaceGP::Workspace weight_space;   ///< weight space
     KernelGP::Workspace function_space;      ///< function space
+    Matrix regressor;                         ///< Psi(x), N x P (regressor)
+    RegressorGP::Workspace regressor_gp;      ///< regressor
+    std::shared_ptr<RegressorMap::Scratch> regressor_scratch;  ///< regressor
   };
   /// A workspace for the fitted form (allocates). After a refit or a Reserve of the function
   /// space, make a new one.
@@ -113,7 +132,8 @@ class GaussianProcess {
   Status Predict(const ConstVectorRef& x, VectorRef mean) const;
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
                              VectorRef noisy_variance) const;
-  /// Adds one sample online (O(D^2) or O(m^2)); the function space needs Reserve'd room.
+  /// Adds one sample online (O(D^2) or O(m^2)); the function space needs Reserve'd room. The
+  /// regressor form adds the sample to its statistics and refits (O(N P^2 + P^3)).
   Status Add(const ConstVectorRef& x, const ConstVectorRef& y);
 
   double LogMarginalLikelihood() const;
@@ -122,6 +142,9 @@ class GaussianProcess {
   const WeightSpaceGP* weight_space() const { return weight_space_.get(); }
   const KernelGP* function_space() const { return function_space_.get(); }
   KernelGP* mutable_function_space() { return function_space_.get(); }
+  const RegressorGP* regressor() const { return regressor_gp_.get(); }
+  /// The regressor of the kRegressor form (null otherwise).
+  const std::shared_ptr<const RegressorMap>& regressor_map() const { return regressor_map_; }
 
  private:
   std::shared_ptr<const FeatureMap> map_;  // null for a kernel-only model
@@ -132,10 +155,14 @@ class GaussianProcess {
   Form active_;
   std::unique_ptr<WeightSpaceGP> weight_space_;
   std::unique_ptr<KernelGP> function_space_;
+  std::shared_ptr<const RegressorMap> regressor_map_;
+  std::unique_ptr<RegressorGP> regressor_gp_;
+  bool regressor_scratch_ = false;  // the regressor map needs scratch
   BatchFitOptions batch_;
   Eigen::Index data_rows_ = 0;
   Eigen::Index fit_rows_ = 0;
   Vector phi_;  // feature scratch of Add (D)
+  bool RegressorInputOk(const ConstVectorRef& x, const Workspace& workspace) const;
 };
 
 }  // namespace structgp

@@ -17,6 +17,12 @@
 /// would be wider than RobotModelOptions::max_explicit_features (from N = 4 joints by
 /// default: D = 8,830 at N = 4, 422,603 at N = 6); effects that use the time then need the
 /// explicit map.
+///
+/// rbd is the rigid-body regressor of a known chain (RobotModelOptions::rigid_body, from a URDF):
+/// torque is linear in the links' inertial parameters, shared by every joint, with a prior
+/// centred on the chain's values; friction and effects add per-joint columns. It runs as a
+/// RegressorGP (GaussianProcess's kRegressor form) with one noise level per joint
+/// (feature/rigid_body_regressor_map.h has the prior).
 
 #include <memory>
 #include <string>
@@ -26,6 +32,7 @@
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
+#include "structgp/feature/rigid_body_regressor_map.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/model/gaussian_process.h"
@@ -48,6 +55,8 @@ struct RobotModelOptions {
   /// form is Form::kWeightSpace); beyond, the model runs in function space on k_pol's
   /// formula. D = 12, 133, 1151, 8830 for N = 1..4.
   int max_explicit_features = 2048;
+  /// rbd: the robot's chain (RigidBodyChain::FromUrdfFile), required for it, unused otherwise.
+  std::shared_ptr<const RigidBodyChain> rigid_body;
 };
 
 /// One physical part of a prediction, for one output.
@@ -71,6 +80,8 @@ struct RobotModelState {
   Form form = Form::kWeightSpace;
   /// Weight space: the posterior (restored as it is, without a fit).
   WeightSpaceGPState weight_space;
+  /// Regressor (rbd): its prior, noise and statistics (restored by a deterministic refit).
+  RegressorGPState regressor;
   /// Function space: the stored points (m x input_dim, m x N), whose factorisation
   /// FromState recomputes (O(m^3), exactly as the fit that stored them did).
   Matrix inputs;
@@ -92,6 +103,8 @@ class RobotModel {
 
   /// The feature map (null for rbf/rbfs bases).
   const std::shared_ptr<const FeatureMap>& feature_map() const { return map_; }
+  /// The regressor of rbd models (null otherwise).
+  const std::shared_ptr<const RigidBodyRegressorMap>& regressor_map() const { return regressor_; }
   /// The hyper-parameters of the last successful Fit (empty before): for a feature map its
   /// shape parameters and block scales, for a kernel its parameters in shape (see
   /// core/hyperparameters.h), and the noise and output scales of both.
@@ -170,12 +183,14 @@ class RobotModel {
   };
   void BuildFeatureMap();
   void BuildKernel();
+  void BuildRegressor();
 
   ModelSpec spec_;
   int num_joints_;
   RobotModelOptions options_;
   bool uses_time_ = false;
   std::shared_ptr<const FeatureMap> map_;
+  std::shared_ptr<const RigidBodyRegressorMap> regressor_;
   std::vector<Part> parts_;                                   // component ranges in phi
   std::vector<std::pair<std::string, int>> parametric_names_;  // feature name -> index
   std::unique_ptr<Kernel> kernel_;  // at hyper_.shape once fitted

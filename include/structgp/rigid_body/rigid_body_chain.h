@@ -85,6 +85,9 @@ class RigidBodyChain {
   const std::string& tip() const;
   /// Where the chain was read from (the file name, or FromUrdfString's `source`).
   const std::string& source() const;
+  /// The URDF document the chain was read from (model files keep it, so that a model carries
+  /// its robot).
+  const std::string& urdf() const;
   /// Gravitational acceleration in the root frame, m/s^2.
   const Eigen::Vector3d& gravity() const;
 
