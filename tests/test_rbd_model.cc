@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include "structgp/diagnose/diagnosis.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/io/model_file.h"
 #include "structgp/model/robot_model.h"
@@ -123,6 +124,40 @@ TEST_F(RbdModelTest, PredictsUnseenMotionToTheNoiseAndFindsTheFriction) {
   Matrix plain_mean;
   plain.model.PredictRows(test_.X, &plain_mean);
   EXPECT_GT(std::sqrt((plain_mean - test_.Y).squaredNorm() / plain_mean.size()), 3 * kNoise);
+}
+
+TEST_F(RbdModelTest, DiagnosisLoopFindsTheMissingFrictionAndReachesTheNoise) {
+  // The loop a user runs: diagnose, add what it names, refit, until it names nothing.
+  ModelSpec spec = ParseModelSpec("rbd");
+  FitOptions options;
+  options.model.rigid_body = nominal_;
+  const int N = nominal_->num_joints();
+  std::vector<bool> coulomb(static_cast<size_t>(N), false), viscous(static_cast<size_t>(N), false);
+  FittedModel model = FitModel(spec, train_.X, train_.Y, Vector(), options);
+  for (int round = 0; round < 4; ++round) {
+    const Diagnosis d = Diagnose(model.model, train_.X, train_.Y, Vector());
+    ASSERT_EQ(d.status, DiagnosisStatus::kOk) << d.message;
+    if (d.suggestions.empty()) break;
+    for (const Suggestion& s : d.suggestions) {
+      EXPECT_TRUE(s.effect == "coulomb" || s.effect == "viscous" || s.effect == "stribeck")
+          << "round " << round << ": " << s.spec;
+      if (s.effect == "coulomb") coulomb[static_cast<size_t>(s.joint - 1)] = true;
+      if (s.effect == "viscous") viscous[static_cast<size_t>(s.joint - 1)] = true;
+      const std::vector<EffectSpec> added = ParseEffectList(s.spec);
+      spec.effects.insert(spec.effects.end(), added.begin(), added.end());
+    }
+    model = FitModel(spec, train_.X, train_.Y, Vector(), options);
+  }
+  for (int j = 0; j < N; ++j) {
+    EXPECT_TRUE(coulomb[static_cast<size_t>(j)]) << "Coulomb friction of joint " << j + 1;
+    EXPECT_TRUE(viscous[static_cast<size_t>(j)]) << "viscous friction of joint " << j + 1;
+  }
+  Matrix mean;
+  model.model.PredictRows(test_.X, &mean);
+  for (int j = 0; j < N; ++j) {
+    const double rms = std::sqrt((mean.col(j) - test_.Y.col(j)).squaredNorm() / mean.rows());
+    EXPECT_LT(rms / kNoise, 1.1) << "joint " << j + 1 << " with " << ToString(spec.effects);
+  }
 }
 
 TEST_F(RbdModelTest, ComponentsAddUpAndMatchKdlsTerms) {

@@ -40,8 +40,9 @@ class PredictCommand : public Command {
   int Run() override {
     CheckOutputPath("--out", out_);
     const RobotModel model = LoadModel(model_);
-    if (components_ && (model.feature_map() == nullptr || model.gp().weight_space() == nullptr)) {
-      throw UsageError("--components: needs a weight-space pol or motor model; '" + model_ +
+    if (components_ && model.regressor_map() == nullptr &&
+        (model.feature_map() == nullptr || model.gp().weight_space() == nullptr)) {
+      throw UsageError("--components: needs a weight-space pol or motor model, or rbd; '" + model_ +
                        "' is " + ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) +
                        " form");
     }

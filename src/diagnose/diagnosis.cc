@@ -14,6 +14,7 @@
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
 #include "structgp/feature/friction_feature_map.h"
+#include "structgp/feature/regressor_feature_map.h"
 #include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
@@ -308,12 +309,14 @@ namespace {
 
 // Diagnose, with numerical trouble deep inside (a profile of the evidence, the Nystrom
 // factorisation, a prediction) as std::runtime_error.
+// only_joint (1-based, 0: every joint): the candidates of that joint alone; a model with a
+// regressor (rbd) is diagnosed one joint at a time, against the features of its row.
 Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                           const ConstMatrixRef& Y, const Vector& t,
-                          const DiagnosisOptions& options) {
+                          const DiagnosisOptions& options, int only_joint) {
   std::string invalid;
   if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
-  if (!model.fitted() || (!model.feature_map() && !model.kernel())) {
+  if (!model.fitted() || (!model.feature_map() && !model.kernel() && !model.regressor_map())) {
     throw std::invalid_argument("Diagnose: needs a fitted model");
   }
   const int N = model.num_joints();
@@ -339,6 +342,15 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   Diagnosis out;
   if (base_map) {
     out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) + ")";
+  } else if (model.regressor_map()) {
+    if (only_joint < 1) throw std::logic_error("Diagnose: a regressor model is diagnosed per joint");
+    base_map = std::make_shared<RegressorFeatureMap>(model.regressor_map(), only_joint - 1);
+    Hyperparameters h = DefaultHyperparameters(*base_map, N);
+    h.log_noise_std = base_hyper.log_noise_std;
+    h.log_output_scale = base_hyper.log_output_scale;
+    base_hyper = h;
+    out.features = "each joint's row of the model's rigid-body regressor (P = " +
+                   std::to_string(base_map->dim()) + "), one joint at a time";
   } else {
     const Matrix Z = SelectInducingStates(*model.kernel(), X,
                                           std::min(options.nystrom_features, m / 2));
@@ -462,6 +474,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                                                          : p.valid;
     }
     for (int j = 1; j <= N; ++j) {
+      if (only_joint > 0 && j != only_joint) continue;
       if (model_has(*prototype, j)) continue;
       // The effect proposes its parameters from what a refit of the model on these data
       // cannot explain (the model's own residual also carries its extrapolation error).
@@ -613,7 +626,21 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options) {
   try {
-    return DiagnoseOrThrow(model, X, Y, t, options);
+    if (!model.regressor_map()) return DiagnoseOrThrow(model, X, Y, t, options, 0);
+    // One joint at a time against its own row of the regressor; the suggestions merged.
+    Diagnosis out = DiagnoseOrThrow(model, X, Y, t, options, 1);
+    for (int j = 2; j <= model.num_joints() && out.status == DiagnosisStatus::kOk; ++j) {
+      Diagnosis joint = DiagnoseOrThrow(model, X, Y, t, options, j);
+      if (joint.status != DiagnosisStatus::kOk) return joint;
+      out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
+                             joint.suggestions.end());
+    }
+    std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
+                     [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
+    if (static_cast<int>(out.suggestions.size()) > options.max_suggestions) {
+      out.suggestions.resize(static_cast<size_t>(options.max_suggestions));
+    }
+    return out;
   } catch (const std::invalid_argument&) {
     throw;  // a caller mistake
   } catch (const std::runtime_error& e) {
