@@ -62,7 +62,7 @@ struct RigidBodyChain::Kinematics {
   KDL::Chain zero_chain;
   std::vector<int> moving_segments;
   std::vector<std::string> joint_names, link_names;
-  std::string root, tip, source;
+  std::string robot_name, root, tip, source;
   std::string urdf;  // the document it was read from
   Eigen::Vector3d gravity;
 };
@@ -139,6 +139,7 @@ RigidBodyChain RigidBodyChain::FromUrdfString(const std::string& xml, const Urdf
   kinematics->moving_segments = std::move(read.moving_segments);
   kinematics->joint_names = std::move(read.joint_names);
   kinematics->link_names = std::move(read.link_names);
+  kinematics->robot_name = std::move(read.robot_name);
   kinematics->root = std::move(read.root);
   kinematics->tip = std::move(read.tip);
   kinematics->source = source;
@@ -162,6 +163,9 @@ const std::vector<std::string>& RigidBodyChain::joint_names() const {
 }
 const std::vector<std::string>& RigidBodyChain::link_names() const {
   return model_->kinematics->link_names;
+}
+const std::string& RigidBodyChain::robot_name() const {
+  return model_->kinematics->robot_name;
 }
 const std::string& RigidBodyChain::root() const { return model_->kinematics->root; }
 const std::string& RigidBodyChain::tip() const { return model_->kinematics->tip; }

@@ -80,6 +80,8 @@ class RigidBodyChain {
   const std::vector<std::string>& joint_names() const;
   /// The moving links' URDF names (the child link of each moving joint), root to tip.
   const std::vector<std::string>& link_names() const;
+  /// The URDF's robot name.
+  const std::string& robot_name() const;
   /// The chain's root and tip link names.
   const std::string& root() const;
   const std::string& tip() const;
