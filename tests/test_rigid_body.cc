@@ -89,6 +89,7 @@ TEST(RigidBodyChainTest, ReadsNamesAndSizes) {
       RandomUrdf(Random(7, true)), {}, "random.urdf");
   EXPECT_EQ(chain.num_joints(), 7);
   EXPECT_EQ(chain.num_parameters(), 77);
+  EXPECT_EQ(chain.robot_name(), "random");
   EXPECT_EQ(chain.root(), "world");
   EXPECT_EQ(chain.tip(), "link7");
   EXPECT_EQ(chain.source(), "random.urdf");

@@ -15,6 +15,10 @@
 #include "structgp/core/validate.h"
 #include "structgp/core/hyperparameters.h"
 
+// Rigid bodies: chains from URDF, KDL dynamics, the inertial-parameter regressor.
+#include "structgp/rigid_body/rigid_body_chain.h"
+#include "structgp/rigid_body/physical_consistency.h"
+
 // Feature maps: the structured kernels as explicit features, effects, sums, Nystrom.
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"

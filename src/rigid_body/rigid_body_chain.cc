@@ -62,7 +62,7 @@ struct RigidBodyChain::Kinematics {
   KDL::Chain zero_chain;
   std::vector<int> moving_segments;
   std::vector<std::string> joint_names, link_names;
-  std::string root, tip, source;
+  std::string robot_name, root, tip, source;
   std::string urdf;  // the document it was read from
   Eigen::Vector3d gravity;
 };
@@ -73,23 +73,39 @@ struct RigidBodyChain::Model {
   KDL::Chain chain;  // KDL solvers built on it keep a reference: the Model never moves.
 };
 
+// Link k's inertia moves only joints 1..k, and the recursive Newton-Euler solver on the chain
+// cut after link k gives those torques at about k/N of the cost: one truncated chain per link.
 struct RigidBodyChain::Workspace::Impl {
-  explicit Impl(std::shared_ptr<const Kinematics> kin)
-      : kinematics(std::move(kin)),
-        chain(kinematics->zero_chain),
-        rne_gravity(chain, ToKdl(kinematics->gravity)),
-        rne_no_gravity(chain, KDL::Vector::Zero()),
-        q(chain.getNrOfJoints()),
-        qd(chain.getNrOfJoints()),
-        qdd(chain.getNrOfJoints()),
-        zero(chain.getNrOfJoints()),
-        tau(chain.getNrOfJoints()),
-        no_external_wrenches(chain.getNrOfSegments(), KDL::Wrench::Zero()) {}
+  struct Truncated {
+    Truncated(const KDL::Chain& full, int last_segment, const Eigen::Vector3d& gravity)
+        : chain(Cut(full, last_segment)),
+          rne_gravity(chain, ToKdl(gravity)),
+          rne_no_gravity(chain, KDL::Vector::Zero()),
+          q(chain.getNrOfJoints()),
+          qd(chain.getNrOfJoints()),
+          qdd(chain.getNrOfJoints()),
+          zero(chain.getNrOfJoints()),
+          tau(chain.getNrOfJoints()),
+          no_external_wrenches(chain.getNrOfSegments(), KDL::Wrench::Zero()) {}
+    static KDL::Chain Cut(const KDL::Chain& full, int last_segment) {
+      KDL::Chain out;
+      for (int i = 0; i <= last_segment; ++i) out.addSegment(full.getSegment(i));
+      return out;
+    }
+    KDL::Chain chain;  // zero inertia except the one basis inertia being evaluated
+    KDL::ChainIdSolver_RNE rne_gravity, rne_no_gravity;
+    KDL::JntArray q, qd, qdd, zero, tau;
+    KDL::Wrenches no_external_wrenches;
+  };
+  explicit Impl(std::shared_ptr<const Kinematics> kin) : kinematics(std::move(kin)) {
+    for (const int segment : kinematics->moving_segments) {
+      truncated.push_back(
+          std::make_unique<Truncated>(kinematics->zero_chain, segment, kinematics->gravity));
+    }
+  }
   std::shared_ptr<const Kinematics> kinematics;
-  KDL::Chain chain;  // zero inertia except the one basis inertia being evaluated
-  KDL::ChainIdSolver_RNE rne_gravity, rne_no_gravity;
-  KDL::JntArray q, qd, qdd, zero, tau;
-  KDL::Wrenches no_external_wrenches;
+  // KDL's solvers keep a reference to their chain: each Truncated stays where it was made.
+  std::vector<std::unique_ptr<Truncated>> truncated;
 };
 
 RigidBodyChain::Workspace::Workspace(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -139,6 +155,7 @@ RigidBodyChain RigidBodyChain::FromUrdfString(const std::string& xml, const Urdf
   kinematics->moving_segments = std::move(read.moving_segments);
   kinematics->joint_names = std::move(read.joint_names);
   kinematics->link_names = std::move(read.link_names);
+  kinematics->robot_name = std::move(read.robot_name);
   kinematics->root = std::move(read.root);
   kinematics->tip = std::move(read.tip);
   kinematics->source = source;
@@ -162,6 +179,9 @@ const std::vector<std::string>& RigidBodyChain::joint_names() const {
 }
 const std::vector<std::string>& RigidBodyChain::link_names() const {
   return model_->kinematics->link_names;
+}
+const std::string& RigidBodyChain::robot_name() const {
+  return model_->kinematics->robot_name;
 }
 const std::string& RigidBodyChain::root() const { return model_->kinematics->root; }
 const std::string& RigidBodyChain::tip() const { return model_->kinematics->tip; }
@@ -281,21 +301,25 @@ void RigidBodyChain::Regressor(const ConstVectorRef& q, const ConstVectorRef& qd
   const bool with_gravity = terms == Terms::kAll || terms == Terms::kGravity;
   const bool with_velocity = terms == Terms::kAll || terms == Terms::kCoriolis;
   const bool with_acceleration = terms == Terms::kAll || terms == Terms::kInertial;
-  ws.q.data = q;
-  ws.qd.data = qd;
-  ws.qdd.data = qdd;
-  KDL::ChainIdSolver_RNE& rne = with_gravity ? ws.rne_gravity : ws.rne_no_gravity;
-  const KDL::JntArray& velocity = with_velocity ? ws.qd : ws.zero;
-  const KDL::JntArray& acceleration = with_acceleration ? ws.qdd : ws.zero;
   const auto& basis = internal::BasisInertias();
   const std::vector<int>& moving = ws.kinematics->moving_segments;
   for (int k = 0; k < n; ++k) {
-    KDL::Segment& segment = ws.chain.segments[moving[k]];
+    Workspace::Impl::Truncated& t = *ws.truncated[k];
+    const int joints = k + 1;
+    t.q.data = q.head(joints);
+    t.qd.data = qd.head(joints);
+    t.qdd.data = qdd.head(joints);
+    KDL::ChainIdSolver_RNE& rne = with_gravity ? t.rne_gravity : t.rne_no_gravity;
+    const KDL::JntArray& velocity = with_velocity ? t.qd : t.zero;
+    const KDL::JntArray& acceleration = with_acceleration ? t.qdd : t.zero;
+    KDL::Segment& segment = t.chain.segments[moving[k]];
     for (int j = 0; j < kLinkParameters; ++j) {
       segment.setInertia(basis[j]);
-      CheckKdl(rne.CartToJnt(ws.q, velocity, acceleration, ws.no_external_wrenches, ws.tau),
+      CheckKdl(rne.CartToJnt(t.q, velocity, acceleration, t.no_external_wrenches, t.tau),
                "ChainIdSolver_RNE::CartToJnt");
-      Y.col(kLinkParameters * k + j) = ws.tau.data;
+      auto column = Y.col(kLinkParameters * k + j);
+      column.head(joints) = t.tau.data;
+      column.tail(n - joints).setZero();
     }
     segment.setInertia(KDL::RigidBodyInertia::Zero());
   }

@@ -136,6 +136,7 @@ UrdfChain ReadUrdfChain(const std::string& xml, const UrdfOptions& options,
   }
 
   UrdfChain out;
+  out.robot_name = model->getName();
   out.root = options.root.empty() ? model->getRoot()->name : options.root;
   const urdf::LinkConstSharedPtr root = model->getLink(out.root);
   if (!root) {

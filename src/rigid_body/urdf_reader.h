@@ -21,7 +21,7 @@ struct UrdfChain {
   KDL::Chain chain;
   std::vector<int> moving_segments;  // KDL segment index of moving joint k
   std::vector<std::string> joint_names, link_names;
-  std::string root, tip;
+  std::string robot_name, root, tip;
 };
 
 // Throws std::invalid_argument naming `source` on every problem listed at

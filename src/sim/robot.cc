@@ -120,6 +120,21 @@ struct Robot::Model {
   KDL::Chain chain;  // KDL solvers built on it keep a reference: the Model never moves.
 };
 
+Robot::Robot(std::shared_ptr<const Model> model) : model_(std::move(model)) {}
+
+Robot Robot::FromUrdf(const std::string& path, const UrdfOptions& options) {
+  return FromRigidBodyChain(RigidBodyChain::FromUrdfFile(path, options));
+}
+
+Robot Robot::FromRigidBodyChain(const RigidBodyChain& chain, std::string name) {
+  auto model = std::make_shared<Model>();
+  model->name = name.empty() ? chain.robot_name() : std::move(name);
+  model->base_rotation = Eigen::Matrix3d::Identity();
+  model->gravity_in_base = chain.gravity();
+  model->chain = chain.kdl_chain();
+  return Robot(std::move(model));
+}
+
 Robot::Robot(std::string name, std::vector<LinkParameters> links,
              const Eigen::Matrix3d& base_rotation) {
   if (links.empty()) {
@@ -137,7 +152,7 @@ Robot::Robot(std::string name, std::vector<LinkParameters> links,
 }
 
 const std::string& Robot::name() const { return model_->name; }
-int Robot::num_joints() const { return static_cast<int>(model_->links.size()); }
+int Robot::num_joints() const { return static_cast<int>(model_->chain.getNrOfJoints()); }
 const std::vector<LinkParameters>& Robot::links() const { return model_->links; }
 const Eigen::Matrix3d& Robot::base_rotation() const { return model_->base_rotation; }
 Eigen::Vector3d Robot::gravity_in_base() const { return model_->gravity_in_base; }

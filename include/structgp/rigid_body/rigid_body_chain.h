@@ -80,6 +80,8 @@ class RigidBodyChain {
   const std::vector<std::string>& joint_names() const;
   /// The moving links' URDF names (the child link of each moving joint), root to tip.
   const std::vector<std::string>& link_names() const;
+  /// The URDF's robot name.
+  const std::string& robot_name() const;
   /// The chain's root and tip link names.
   const std::string& root() const;
   const std::string& tip() const;
@@ -139,8 +141,10 @@ class RigidBodyChain {
 
   /// The regressor Y (N x P): the selected terms of the inverse dynamics are Y pi for every
   /// parameter vector pi of this kinematics. Column j is KDL's recursive Newton-Euler torque of
-  /// the chain whose only inertia is basis inertia j (the armature columns: qdd_j on joint j for
-  /// kAll and kInertial, zero otherwise). Y must be N x P. Never allocates. Throws
+  /// the chain whose only inertia is basis inertia j, evaluated on the chain cut after that
+  /// link (the joints past it get 0); the armature columns are qdd_j on joint j for kAll and
+  /// kInertial, zero otherwise. 10 N evaluations of 1..N joints: about 70 us at N = 7
+  /// (bench/bench_rigid_body). Y must be N x P. Never allocates. Throws
   /// std::invalid_argument on a wrong size, a non-finite entry, or a workspace of another
   /// kinematics (the message is only built then).
   void Regressor(const ConstVectorRef& q, const ConstVectorRef& qd, const ConstVectorRef& qdd,

@@ -13,7 +13,8 @@
 ///     tau = M(q) qdd + C(q, qd) qd + G(q),
 /// with gravity of kStandardGravity m/s^2 along -z of the world frame. The kinematics use
 /// the standard (distal) Denavit-Hartenberg convention: the frame of link i sits at the far
-/// end of link i and joint i turns about the z axis of frame i-1.
+/// end of link i and joint i turns about the z axis of frame i-1. A robot can also come from a
+/// URDF (Robot::FromUrdf): its kinematics are then the URDF's, with gravity as UrdfOptions says.
 
 #include <cstdint>
 #include <memory>
@@ -21,6 +22,8 @@
 #include <vector>
 
 #include <Eigen/Core>
+
+#include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace KDL {
 class Chain;
@@ -74,8 +77,18 @@ class Robot {
   Robot(std::string name, std::vector<LinkParameters> links,
         const Eigen::Matrix3d& base_rotation = Eigen::Matrix3d::Identity());
 
+  /// A robot with the kinematics and inertias of a URDF's chain (RigidBodyChain::FromUrdfFile:
+  /// the same options and errors); its gravity is options.gravity, in the root link's frame.
+  /// Named after the URDF's robot. Such a robot has no DH parameters: links() is empty,
+  /// base_rotation() the identity and gravity_in_base() the chain's gravity.
+  static Robot FromUrdf(const std::string& path, const UrdfOptions& options = {});
+  /// The same from a chain already read (its armature included); name empty: the chain's
+  /// robot name.
+  static Robot FromRigidBodyChain(const RigidBodyChain& chain, std::string name = "");
+
   const std::string& name() const;
   int num_joints() const;
+  /// The DH links (empty for a robot from a URDF).
   const std::vector<LinkParameters>& links() const;
   const Eigen::Matrix3d& base_rotation() const;
   /// Gravitational acceleration expressed in the DH base frame 0, m/s^2.
@@ -105,6 +118,7 @@ class Robot {
 
  private:
   struct Model;
+  explicit Robot(std::shared_ptr<const Model> model);
   std::shared_ptr<const Model> model_;
 };
 

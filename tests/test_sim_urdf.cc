@@ -1,0 +1,126 @@
+// The simulator's DH robots as URDF (sim::ToUrdf, data/urdf/) against the DH robots themselves:
+// the same inverse dynamics through kdl_parser's reading of the document.
+
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "structgp/rigid_body/rigid_body_chain.h"
+#include "structgp/sim/robot.h"
+#include "structgp/sim/urdf.h"
+
+namespace structgp {
+namespace sim {
+namespace {
+
+const std::string kUrdfDir = std::string(STRUCTGP_SOURCE_DIR) + "/data/urdf";
+
+std::vector<Robot> BuiltIn() { return {TwoLinkArm(), ThreeLinkArm(), Puma560()}; }
+
+// The DH robot with its armature removed (URDF has none).
+Robot WithoutArmature(const Robot& robot) {
+  std::vector<LinkParameters> links = robot.links();
+  for (LinkParameters& link : links) link.armature = 0.0;
+  return Robot(robot.name(), links, robot.base_rotation());
+}
+
+// Inverse dynamics of two models of one robot on random states. The URDF's frames are the DH
+// frames up to rotations written as roll-pitch-yaw with 17 digits, so the torques agree to a
+// few ulps of the largest; 1e-10 relative leaves room for the conversions.
+void ExpectSameDynamics(const Robot& dh, const RigidBodyChain& chain, std::uint64_t seed) {
+  ASSERT_EQ(chain.num_joints(), dh.num_joints());
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const int n = dh.num_joints();
+  for (int trial = 0; trial < 50; ++trial) {
+    Eigen::VectorXd q(n), qd(n), qdd(n);
+    for (int j = 0; j < n; ++j) {
+      q(j) = 3.1 * unit(rng);
+      qd(j) = 2.0 * unit(rng);
+      qdd(j) = 5.0 * unit(rng);
+    }
+    const Eigen::VectorXd want = dh.InverseDynamics(q, qd, qdd);
+    const Eigen::VectorXd got = chain.InverseDynamics(q, qd, qdd);
+    EXPECT_LT((got - want).norm(), 1e-10 * want.norm())
+        << dh.name() << " trial " << trial << "\n dh   " << want.transpose() << "\n urdf "
+        << got.transpose();
+    EXPECT_LT((chain.MassMatrix(q) - dh.MassMatrix(q)).norm(), 1e-10 * dh.MassMatrix(q).norm());
+  }
+}
+
+TEST(SimUrdfTest, UrdfAndDhGiveTheSameInverseDynamics) {
+  for (const Robot& robot : BuiltIn()) {
+    SCOPED_TRACE(robot.name());
+    const RigidBodyChain chain = RigidBodyChain::FromUrdfString(ToUrdf(robot));
+    EXPECT_EQ(chain.robot_name(), robot.name());
+    EXPECT_EQ(chain.root(), "world");
+    EXPECT_EQ(chain.tip(), "tool");
+    EXPECT_EQ(chain.parameters().tail(robot.num_joints()), Eigen::VectorXd::Zero(robot.num_joints()));
+    ExpectSameDynamics(WithoutArmature(robot), chain, 1);
+    // The armature put back: the DH robot as it is.
+    ExpectSameDynamics(robot, ToRigidBodyChain(robot), 2);
+  }
+}
+
+TEST(SimUrdfTest, RandomRobotsToo) {
+  for (int n = 1; n <= 7; ++n) {
+    const Robot robot = RandomRobot(n, 40 + n);
+    SCOPED_TRACE(robot.name());
+    ExpectSameDynamics(robot, ToRigidBodyChain(robot), 3);
+  }
+}
+
+TEST(SimUrdfTest, ShippedFilesAreCurrent) {
+  for (const Robot& robot : BuiltIn()) {
+    const std::string path = kUrdfDir + "/" + robot.name() + ".urdf";
+    std::ifstream in(path, std::ios::binary);
+    ASSERT_TRUE(in) << "missing " << path;
+    std::ostringstream text;
+    text << in.rdbuf();
+    EXPECT_EQ(text.str(), ToUrdf(robot))
+        << path << " is not what sim::ToUrdf writes: regenerate the files with "
+        << "`build/tests/generate_urdfs data/urdf`";
+  }
+}
+
+TEST(SimUrdfTest, RobotFromUrdfFile) {
+  const Robot dh = Puma560();
+  const Robot urdf = Robot::FromUrdf(kUrdfDir + "/puma560.urdf");
+  EXPECT_EQ(urdf.name(), "puma560");
+  EXPECT_EQ(urdf.num_joints(), 6);
+  EXPECT_TRUE(urdf.links().empty());
+  ExpectSameDynamics(WithoutArmature(dh), RigidBodyChain::FromUrdfFile(kUrdfDir + "/puma560.urdf"), 4);
+  // The Robot's own evaluations (KDL on the URDF's chain) and its components.
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Eigen::VectorXd q(6), qd(6), qdd(6);
+  for (int j = 0; j < 6; ++j) {
+    q(j) = 3.0 * unit(rng);
+    qd(j) = unit(rng);
+    qdd(j) = unit(rng);
+  }
+  const Eigen::VectorXd want = WithoutArmature(dh).InverseDynamics(q, qd, qdd);
+  EXPECT_LT((urdf.InverseDynamics(q, qd, qdd) - want).norm(), 1e-10 * want.norm());
+  const DynamicsComponents c = urdf.Components(q, qd, qdd);
+  EXPECT_LT((c.inertial + c.coriolis + c.gravity - want).norm(), 1e-10 * want.norm());
+  // A robot from a chain with armature keeps it.
+  const Robot with_armature = Robot::FromRigidBodyChain(ToRigidBodyChain(dh));
+  const Eigen::VectorXd dh_tau = dh.InverseDynamics(q, qd, qdd);
+  EXPECT_LT((with_armature.InverseDynamics(q, qd, qdd) - dh_tau).norm(), 1e-10 * dh_tau.norm());
+  // No DH parameters to write.
+  try {
+    ToUrdf(urdf);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(),
+                 "ToUrdf: robot 'puma560' was read from a URDF and has no DH parameters");
+  }
+}
+
+}  // namespace
+}  // namespace sim
+}  // namespace structgp
