@@ -1,0 +1,380 @@
+// generalisation: slow -> fast on KDL-simulated arms, each model against the reference that
+// knows the answer (docs/generalisation.md).
+//
+//   generalisation [--robots=two_link,three_link,puma560] [--cases=none,friction]
+//                  [--models=reference,rbd+fri,rbd+fri/off30,pol+fri,rbf+fri]
+//                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
+//                  [--out=FILE.csv]
+//                  [--quick] [--check]
+//
+// Per robot and case: a slow training log (--train-vias via points in --train-seconds, seed 1,
+// 100 Hz: 5,000 rows by default) and --tests
+// fast test logs (speed 2.5: velocities 2.5 and accelerations 6.25 times larger, seeds 2, 3,
+// ...: other paths), torques by KDL's recursive Newton-Euler (sim::Simulate), noise per joint
+// --noise times that joint's RMS noise-free training torque. Case "friction": viscous and
+// Coulomb friction on every joint (Coulomb 10% of the joint's RMS torque, viscous 5% of it per
+// RMS velocity, tanh width 0.01 rad/s), and the models are told (+fri).
+//
+// Models: "reference" is least squares (noise-weighted) on the true rigid-body regressor of the
+// simulated chain (sim::ToUrdf -> RigidBodyChain, armature included) plus the true friction
+// bases: what a model that knows the kinematics and the effect bases gets; every other model is
+// fitted by the library's workflow with the CLI's defaults (FitModel, type-II maximum
+// likelihood). rbd uses the robot's URDF (armature not in it); "/off30" centres rbd's prior on
+// inertial parameters each off by up to +-30%.
+//
+// Columns: test RMS / noise per joint (the mean over the test logs; 1.0 is a perfect model),
+// the largest of them, the mean nMSE, the 2-sigma coverage of the noisy predictive band (worst
+// joint), training rows and fit time.
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/QR>
+
+#include "experiment_program.h"
+#include "structgp/fit/fit_model.h"
+#include "structgp/internal/text.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
+#include "structgp/sim/dataset.h"
+#include "structgp/sim/friction.h"
+#include "structgp/sim/robot.h"
+#include "structgp/sim/trajectory.h"
+#include "structgp/sim/urdf.h"
+
+namespace structgp {
+namespace {
+
+using internal::Format;
+
+constexpr double kDt = 0.01;           // s
+constexpr int kVias = 10;
+constexpr double kRange = 1.0;         // rad
+constexpr double kFastSpeed = 2.5;
+constexpr double kTestSeconds = 10.0;
+constexpr double kWidth = 0.01;        // rad/s, the friction tanh (the model's default too)
+
+struct Flags {
+  std::vector<std::string> robots{"two_link", "three_link", "puma560"};
+  std::vector<std::string> cases{"none", "friction"};
+  std::vector<std::string> models{"reference", "rbd+fri", "rbd+fri/off30", "pol+fri", "rbf+fri"};
+  double train_seconds = 50.0;
+  int train_vias = 50;
+  double noise = 0.01;
+  int tests = 2;
+  std::string out;
+  bool quick = false;
+  bool check = false;
+};
+
+sim::Robot MakeRobot(const std::string& name) {
+  if (name == "two_link") return sim::TwoLinkArm();
+  if (name == "three_link") return sim::ThreeLinkArm();
+  if (name == "puma560") return sim::Puma560();
+  throw std::invalid_argument("--robots: unknown robot '" + name +
+                              "' (expected two_link, three_link, puma560, panda)");
+}
+
+// The chain of a simulated robot: with its armature (the truth), or as its URDF has it.
+RigidBodyChain ChainOf(const sim::Robot& robot, bool with_armature) {
+  if (with_armature) return sim::ToRigidBodyChain(robot);
+  return RigidBodyChain::FromUrdfString(sim::ToUrdf(robot), {}, robot.name() + ".urdf");
+}
+
+struct Case {
+  sim::Dataset train;
+  std::vector<sim::Dataset> tests;
+  Vector noise;   // per joint, N m
+  bool friction = false;
+};
+
+Case MakeCase(const sim::Robot& robot, bool friction, const Flags& f) {
+  const int N = robot.num_joints();
+  Case c;
+  c.friction = friction;
+  const sim::Trajectory slow = sim::ViaPoints(N, f.train_seconds, kDt, f.train_vias, 1.0, kRange, 1);
+  const sim::Dataset clean = sim::Simulate(robot, slow);
+  const Vector rms = (clean.Y.colwise().squaredNorm() / clean.Y.rows()).cwiseSqrt().transpose();
+  const Vector qd_rms =
+      (slow.qd.colwise().squaredNorm() / slow.qd.rows()).cwiseSqrt().transpose();
+  sim::SimulationOptions options;
+  if (friction) {
+    std::vector<sim::JointFriction> joints(static_cast<size_t>(N));
+    for (int j = 0; j < N; ++j) {
+      joints[static_cast<size_t>(j)].coulomb = 0.1 * rms[j];
+      joints[static_cast<size_t>(j)].viscous = 0.05 * rms[j] / std::max(qd_rms[j], 0.1);
+      joints[static_cast<size_t>(j)].smoothing_velocity = kWidth;
+    }
+    options.friction = sim::FrictionModel(joints);
+  }
+  c.noise = f.noise * rms;
+  auto simulate = [&](const sim::Trajectory& tr, std::uint64_t seed) {
+    sim::SimulationOptions o = options;
+    sim::Dataset d = sim::Simulate(robot, tr, o);
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> normal;
+    for (Eigen::Index i = 0; i < d.Y.rows(); ++i) {
+      for (int j = 0; j < N; ++j) d.Y(i, j) += c.noise[j] * normal(rng);
+    }
+    return d;
+  };
+  c.train = simulate(slow, 1001);
+  for (int k = 0; k < f.tests; ++k) {
+    const auto seed = static_cast<std::uint64_t>(2 + k);
+    c.tests.push_back(simulate(
+        sim::ViaPoints(N, kTestSeconds, kDt, kVias, kFastSpeed, kRange, seed), 2001 + seed));
+  }
+  return c;
+}
+
+struct Prediction {
+  Matrix mean, noisy_std;
+};
+
+struct Row {
+  std::string robot, kase, model;
+  Vector ratio;     // test RMS / noise per joint
+  double nmse = 0;  // mean over joints and tests
+  Vector coverage;  // 2-sigma coverage per joint
+  int rows = 0;
+  double seconds = 0;
+  std::string note;
+};
+
+// Stacked weighted least squares on the true regressor and friction bases.
+class Reference {
+ public:
+  Reference(const RigidBodyChain& truth, bool friction, const Vector& noise)
+      : chain_(truth), friction_(friction), noise_(noise) {}
+  int dim() const { return chain_.num_parameters() + (friction_ ? 2 * chain_.num_joints() : 0); }
+  Matrix Psi(const Vector& x) const {
+    const int N = chain_.num_joints();
+    Matrix psi = Matrix::Zero(N, dim());
+    psi.leftCols(chain_.num_parameters()) =
+        chain_.Regressor(x.head(N), x.segment(N, N), x.segment(2 * N, N));
+    if (friction_) {
+      for (int j = 0; j < N; ++j) {
+        psi(j, chain_.num_parameters() + 2 * j) = x[N + j];
+        psi(j, chain_.num_parameters() + 2 * j + 1) = std::tanh(x[N + j] / kWidth);
+      }
+    }
+    return psi;
+  }
+  void Fit(const Matrix& X, const Matrix& Y) {
+    const int N = chain_.num_joints();
+    Matrix A(X.rows() * N, dim());
+    Vector b(X.rows() * N);
+    for (Eigen::Index i = 0; i < X.rows(); ++i) {
+      const Matrix psi = Psi(X.row(i).transpose());
+      for (int j = 0; j < N; ++j) {
+        A.row(i * N + j) = psi.row(j) / noise_[j];
+        b[i * N + j] = Y(i, j) / noise_[j];
+      }
+    }
+    theta_ = A.colPivHouseholderQr().solve(b);
+  }
+  Prediction Predict(const Matrix& X) const {
+    const int N = chain_.num_joints();
+    Prediction p{Matrix(X.rows(), N), Matrix(X.rows(), N)};
+    for (Eigen::Index i = 0; i < X.rows(); ++i) {
+      p.mean.row(i) = (Psi(X.row(i).transpose()) * theta_).transpose();
+      p.noisy_std.row(i) = noise_.transpose();  // the parameters' own variance is negligible
+    }
+    return p;
+  }
+
+ private:
+  RigidBodyChain chain_;
+  bool friction_;
+  Vector noise_;
+  Vector theta_;
+};
+
+Prediction PredictModel(const RobotModel& model, const Matrix& X) {
+  const int N = model.num_joints();
+  Prediction p{Matrix(X.rows(), N), Matrix(X.rows(), N)};
+  RobotModel::Workspace ws = model.MakeWorkspace();
+  Vector mean(N), latent(N), noisy(N);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    if (model.PredictWithVariance(X.row(i).transpose(), mean, latent, noisy, ws) != Status::kOk) {
+      throw std::runtime_error("prediction failed at test row " + std::to_string(i));
+    }
+    p.mean.row(i) = mean.transpose();
+    p.noisy_std.row(i) = noisy.cwiseSqrt().transpose();
+  }
+  return p;
+}
+
+void Score(const Case& c, const std::vector<Prediction>& predictions, Row* row) {
+  const int N = static_cast<int>(c.noise.size());
+  row->ratio = Vector::Zero(N);
+  row->coverage = Vector::Zero(N);
+  row->nmse = 0.0;
+  Eigen::Index total = 0;
+  for (size_t k = 0; k < c.tests.size(); ++k) {
+    const Matrix& Y = c.tests[k].Y;
+    const Prediction& p = predictions[k];
+    const Matrix err = p.mean - Y;
+    for (int j = 0; j < N; ++j) {
+      const double mse = err.col(j).squaredNorm() / Y.rows();
+      row->ratio[j] += std::sqrt(mse) / c.noise[j] / static_cast<double>(c.tests.size());
+      const double mean = Y.col(j).mean();
+      const double var = (Y.col(j).array() - mean).square().mean();
+      row->nmse += mse / var / (N * static_cast<double>(c.tests.size()));
+      row->coverage[j] +=
+          static_cast<double>((err.col(j).array().abs() <= 2.0 * p.noisy_std.col(j).array()).count());
+    }
+    total += Y.rows();
+  }
+  row->coverage /= static_cast<double>(total);
+}
+
+std::string Join(const Vector& v, const char* format) {
+  std::string out;
+  for (Eigen::Index i = 0; i < v.size(); ++i) out += (i ? " " : "") + Format(format, v[i]);
+  return out;
+}
+
+Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
+             const sim::Robot& robot, const Case& c) {
+  Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<Prediction> predictions;
+  if (name == "reference") {
+    Reference reference(ChainOf(robot, true), c.friction, c.noise);
+    reference.Fit(c.train.X, c.train.Y);
+    row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    for (const auto& t : c.tests) predictions.push_back(reference.Predict(t.X));
+  } else {
+    std::string spec_text = name;
+    bool off = false;
+    const auto slash = name.find('/');
+    if (slash != std::string::npos) {
+      if (name.substr(slash + 1) != "off30") {
+        throw std::invalid_argument("--models: unknown variant '" + name + "'");
+      }
+      spec_text = name.substr(0, slash);
+      off = true;
+    }
+    ModelSpec spec = ParseModelSpec(spec_text);
+    if (!c.friction) spec.friction = false;  // the models are told which effects there are
+    FitOptions options;
+    if (spec.base == BaseModel::kRbd) {
+      RigidBodyChain chain = ChainOf(robot, false);
+      if (off) {
+        std::mt19937_64 rng(5);
+        std::uniform_real_distribution<double> u(-0.3, 0.3);
+        Vector pi = chain.parameters();
+        for (Eigen::Index k = 0; k < pi.size(); ++k) pi[k] *= 1.0 + u(rng);
+        chain = chain.WithParameters(pi);
+      }
+      options.model.rigid_body = std::make_shared<const RigidBodyChain>(chain);
+    }
+    FittedModel fitted = FitModel(spec, c.train.X, c.train.Y, Vector(), options);
+    row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!fitted.summary.IsUsable()) {
+      row.note = "fit failed: " + fitted.summary.message;
+      return row;
+    }
+    row.note = fitted.summary.method_description;
+    row.rows = fitted.summary.model_rows;
+    for (const auto& t : c.tests) predictions.push_back(PredictModel(fitted.model, t.X));
+  }
+  Score(c, predictions, &row);
+  return row;
+}
+
+int Run(const Flags& flags, int argc, char** argv) {
+  Flags f = flags;
+  if (f.quick) {
+    f.robots = {"two_link"};
+    f.cases = {"friction"};
+    f.models = {"reference", "rbd+fri", "rbd+fri/off30"};
+    f.train_seconds = 20.0;
+    f.train_vias = 20;
+    f.tests = 1;
+  }
+  std::vector<Row> rows;
+  std::printf("| robot | case | model | test RMS / noise per joint | max | mean nMSE | 2σ coverage "
+              "per joint | rows | fit s | hyper-parameters |\n|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& robot_name : f.robots) {
+    const sim::Robot robot = MakeRobot(robot_name);
+    for (const std::string& case_name : f.cases) {
+      if (case_name != "none" && case_name != "friction") {
+        throw std::invalid_argument("--cases: unknown case '" + case_name +
+                                    "' (expected none, friction)");
+      }
+      const Case c = MakeCase(robot, case_name == "friction", f);
+      for (const std::string& model : f.models) {
+        Row row = RunModel(robot_name, case_name, model, robot, c);
+        std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
+                    row.kase.c_str(), row.model.c_str(),
+                    row.ratio.size() ? Join(row.ratio, "%.3g").c_str() : "-",
+                    row.ratio.size() ? Format("%.3g", row.ratio.maxCoeff()).c_str() : "-",
+                    row.ratio.size() ? Format("%.3g", row.nmse).c_str() : "-",
+                    row.coverage.size() ? Join(100 * row.coverage, "%.0f%%").c_str() : "-",
+                    row.rows, row.seconds, row.note.c_str());
+        std::fflush(stdout);
+        rows.push_back(row);
+      }
+    }
+  }
+  if (!f.out.empty()) {
+    std::ofstream out(f.out);
+    out << "# " << CommandLine("generalisation", argc, argv) << "\n";
+    out << "robot,case,model,joint,rms_over_noise,coverage,nmse_mean,rows,fit_seconds\n";
+    for (const Row& r : rows) {
+      for (Eigen::Index j = 0; j < r.ratio.size(); ++j) {
+        out << r.robot << "," << r.kase << "," << r.model << "," << j + 1 << ","
+            << Format("%.6g", r.ratio[j]) << "," << Format("%.6g", r.coverage[j]) << ","
+            << Format("%.6g", r.nmse) << "," << r.rows << "," << Format("%.3f", r.seconds)
+            << "\n";
+      }
+    }
+  }
+  if (f.check) {
+    // rbd with the right effects must predict the fast motion within 1.1x of the noise.
+    for (const Row& r : rows) {
+      if (r.model.rfind("rbd", 0) == 0 && (r.ratio.size() == 0 || r.ratio.maxCoeff() > 1.1)) {
+        std::fprintf(stderr, "generalisation: check failed: %s on %s/%s\n", r.model.c_str(),
+                     r.robot.c_str(), r.kase.c_str());
+        return 3;
+      }
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace structgp
+
+int main(int argc, char** argv) {
+  CLI::App app("Slow -> fast generalisation on KDL-simulated arms (docs/generalisation.md)",
+               "generalisation");
+  structgp::Flags f;
+  structgp::AddListFlag(&app, "--robots", &f.robots, "two_link, three_link, puma560");
+  structgp::AddListFlag(&app, "--cases", &f.cases, "none, friction");
+  structgp::AddListFlag(&app, "--models", &f.models,
+                        "reference, or a model (rbd+fri, pol+fri, rbf+fri, ...), /off30 for rbd "
+                        "with inertial parameters off by up to 30%");
+  structgp::AddFlag(&app, "--train-seconds", &f.train_seconds, "length of the slow log, s")
+      ->check(structgp::GreaterThan(0));
+  structgp::AddFlag(&app, "--train-vias", &f.train_vias, "via points of the slow log")
+      ->check(structgp::AtLeast(2));
+  structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
+      ->check(structgp::GreaterThan(0));
+  structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));
+  app.add_option("--out", f.out, "CSV file of the per-joint results");
+  app.add_flag("--quick", f.quick, "a CI-size run: two_link with friction, reference and rbd");
+  app.add_flag("--check", f.check, "exit 3 unless every rbd model is within 1.1x of the noise");
+  return structgp::RunProgram(&app, argc, argv, [&] { return structgp::Run(f, argc, argv); });
+}
