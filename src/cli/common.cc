@@ -117,6 +117,12 @@ std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags) {
   }
 }
 
+std::string ModelSize(const RobotModel& model) {
+  if (model.regressor_map()) return Format("P = %d parameters", model.regressor_map()->dim());
+  if (model.feature_map()) return Format("D = %d features", model.feature_map()->dim());
+  return "kernel model (no finite feature map)";
+}
+
 HyperparameterMethod ParseHyperMethod(const std::string& text) {
   HyperparameterMethod method;
   if (!FromString(text, &method)) {

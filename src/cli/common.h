@@ -86,6 +86,9 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags);
 /// and for a URDF that cannot be read or has no such chain (the message names the file).
 std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags);
 
+/// "D = 134 features", "P = 42 parameters", "kernel model": the size of a model, for summaries.
+std::string ModelSize(const RobotModel& model);
+
 /// "ml", "cv", "fixed" (--hyper); UsageError for anything else.
 HyperparameterMethod ParseHyperMethod(const std::string& text);
 

@@ -58,6 +58,9 @@ class DemoCommand : public Command {
         ->capture_default_str();
     cmd->add_option("--seed", seed_, "Seed of the trajectories and the noise")
         ->capture_default_str();
+    cmd->add_option("--model", model_,
+                    "Starting model (default: pol, or rbd when --urdf gives the robot)");
+    AddRobotFlags(cmd, &urdf_);
     cmd->add_option("--hyper", hyper_, "Hyper-parameters of both fits: ml, cv or fixed")
         ->check(CLI::IsMember({"ml", "cv", "fixed"}))
         ->capture_default_str();
@@ -67,19 +70,29 @@ class DemoCommand : public Command {
         "DIR/model_before.json, DIR/model_after.json, DIR/findings.json, DIR/comparison.json\n"
         "and DIR/report.html.\n"
         "Example:\n"
-        "  structgp demo --effect cogging --joint 1 --out /tmp/cogging-demo");
+        "  structgp demo --effect cogging --joint 1 --out /tmp/cogging-demo\n"
+        "  structgp demo --urdf data/urdf/puma560.urdf --effect coulomb --joint 2\n"
+        "With --urdf the robot is the URDF's chain (--robot is ignored) and the starting model\n"
+        "rbd, its rigid-body regressor, unless --model says otherwise.");
     return cmd;
   }
 
   int Run() override {
     namespace fs = std::filesystem;
     const Progress progress("demo", quiet_);
-    const sim::Robot robot = robot_ == "three-link" ? sim::ThreeLinkArm() : sim::TwoLinkArm();
+    const std::shared_ptr<const RigidBodyChain> chain = LoadRobot(urdf_);
+    const sim::Robot robot = chain                    ? sim::Robot::FromRigidBodyChain(*chain)
+                             : robot_ == "three-link" ? sim::ThreeLinkArm()
+                                                      : sim::TwoLinkArm();
+    const std::string robot_name = chain ? urdf_.urdf : robot_ + " arm";
     const int N = robot.num_joints();
     if (joint_ > N) {
       throw UsageError(
-          Format("--joint: the %s arm has %d joints, got %d", robot_.c_str(), N, joint_));
+          Format("--joint: the %s has %d joints, got %d", robot_name.c_str(), N, joint_));
     }
+    RobotModelOptions model_options;
+    model_options.rigid_body = chain;
+    const std::string start = model_.empty() ? (chain ? "rbd" : "pol") : model_;
     FitOptions settings;
     settings.method = ParseHyperMethod(hyper_);
     sim::HiddenEffectOptions o;
@@ -88,7 +101,7 @@ class DemoCommand : public Command {
     o.magnitude = magnitude_;
     o.noise_std = noise_;
     o.seed = seed_;
-    progress.Line("simulating the " + robot_ + " arm with Orocos KDL");
+    progress.Line("simulating the " + robot_name + " with Orocos KDL");
     const sim::HiddenEffectScenario scenario = sim::MakeHiddenEffectScenario(robot, o);
     const fs::path dir(dir_);
     const std::string train_path = (dir / "train.csv").string();
@@ -104,17 +117,20 @@ class DemoCommand : public Command {
           "%.3g N m)\n",
           joint_, magnitude_ * scale, scale);
     }
-    std::printf("the model is told nothing about the robot: no masses, lengths or friction\n\n");
+    std::printf(chain ? "the model knows the URDF's kinematics and inertias, nothing about "
+                        "friction or other effects\n\n"
+                      : "the model is told nothing about the robot: no masses, lengths or "
+                        "friction\n\n");
 
     // 1. The rigid-body model alone.
-    const ModelSpec before_spec = ParseSpecFlags("pol", "");
-    RobotModel before = MakeModel(before_spec, N);
-    progress.Line("fitting pol on the slow log");
+    const ModelSpec before_spec = ParseSpecFlags(start, "");
+    RobotModel before = MakeModel(before_spec, N, model_options);
+    progress.Line("fitting " + start + " on the slow log");
     const FitSummary before_info = FitModel(train, settings, progress, &before);
     const Predictions before_pred = Predict(before, test);
     const Errors before_err = ComputeErrors(before_pred.mean, test.Y);
-    std::printf("1. fit %s on train.csv (%d slow samples): D = %d features, %s\n",
-                ModelLabel(before_spec).c_str(), train.size(), before.feature_map()->dim(),
+    std::printf("1. fit %s on train.csv (%d slow samples): %s, %s\n",
+                ModelLabel(before_spec).c_str(), train.size(), ModelSize(before).c_str(),
                 before_info.method_description.c_str());
 
     std::printf("   test error on test.csv (%d fast samples), RMS per joint:", test.size());
@@ -146,20 +162,20 @@ class DemoCommand : public Command {
     std::vector<report::ModelErrors> report_errors = {
         ReportErrors(ModelLabel(before_spec), before_err)};
     nlohmann::json comparison;
-    comparison["robot"] = robot_;
+    comparison["robot"] = chain ? urdf_.urdf : robot_;
     comparison["hidden_effect"] = effect_;
     comparison["hidden_joint"] = joint_;
     comparison["before"] = {{"label", ModelLabel(before_spec)}, {"file", before_path}};
     Errors after_err = before_err;
     if (!diagnosis.suggestions.empty()) {
       const ModelSpec after_spec = WithSuggestions(before_spec, diagnosis);
-      RobotModel after = MakeModel(after_spec, N);
+      RobotModel after = MakeModel(after_spec, N, model_options);
       progress.Line("fitting " + ModelLabel(after_spec) + " on the slow log");
       FitModel(train, settings, progress, &after);
       const Predictions after_pred = Predict(after, test);
       after_err = ComputeErrors(after_pred.mean, test.Y);
-      std::printf("3. refit %s on train.csv: D = %d features\n", ModelLabel(after_spec).c_str(),
-                  after.feature_map()->dim());
+      std::printf("3. refit %s on train.csv: %s\n", ModelLabel(after_spec).c_str(),
+                  ModelSize(after).c_str());
       for (const auto& name : after.ParametricFeatureNames()) {
         const int j = name.find('@') != std::string::npos
                           ? std::atoi(name.substr(name.find('@') + 1).c_str())
@@ -257,6 +273,8 @@ class DemoCommand : public Command {
   std::string effect_ = "coulomb";
   int joint_ = 2;
   std::string robot_ = "two-link";
+  std::string model_;
+  RobotFlags urdf_;
   double magnitude_ = 0.1;
   double noise_ = 0.01;
   unsigned long seed_ = 1;
