@@ -392,3 +392,67 @@ TEST(Cli, BadEffectSpecsNameTheCharacter) {
 }
 
 }  // namespace
+
+namespace structgp {
+namespace {
+
+std::string Urdf(const std::string& name) { return std::string(STRUCTGP_URDF_DIR) + "/" + name; }
+
+TEST(CliUrdf, DemoOnAUrdfRobotFindsTheHiddenFrictionWithRbd) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  const Result r = RunCli(dir, {"demo", "--urdf", Urdf("puma560.urdf"), "--effect", "coulomb",
+                                "--joint", "3", "--out", demo, "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "1. fit rbd on train.csv")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "joint 3: missing Coulomb friction")) << r.out;
+  const Json comparison = Json::parse(ReadFile(demo + "/comparison.json"));
+  EXPECT_LE(comparison["joints"][2]["relative_change"].get<double>(), -0.5) << comparison.dump(2);
+
+  // The same data from the command line: rbd+fri with the URDF, evaluated on the fast log.
+  const std::string model = dir.File("rbd.json");
+  const Result fit = RunCli(dir, {"fit", "--data", demo + "/train.csv", "--model", "rbd+fri",
+                                  "--urdf", Urdf("puma560.urdf"), "--out", model, "--quiet"});
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  EXPECT_TRUE(Contains(fit.out, "P = 84 (66 rigid-body")) << fit.out;
+  EXPECT_TRUE(Contains(fit.out, "coulomb@3")) << fit.out;
+  const Result eval = RunCli(dir, {"evaluate", "--model", model, "--data", demo + "/test.csv"});
+  ASSERT_EQ(eval.code, 0) << eval.err;
+  const Result diag = RunCli(dir, {"diagnose", "--model", model, "--data", demo + "/train.csv",
+                                   "--json", dir.File("findings.json")});
+  ASSERT_EQ(diag.code, 0) << diag.err;
+}
+
+TEST(CliUrdf, BadRobotInputGivesExitCode2AndAClearMessage) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);  // a two-joint log
+  const std::string data = demo + "/train.csv";
+  const std::string out = dir.File("m.json");
+  WriteFile(dir.File("broken.urdf"), "<robot name=\"x\"><link name=\"a\"></robot>");
+  struct Case {
+    std::vector<std::string> args;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {{"--model", "rbd"}, "--urdf FILE"},
+      {{"--model", "rbd", "--urdf", dir.File("missing.urdf")}, "missing.urdf"},
+      {{"--model", "rbd", "--urdf", dir.File("broken.urdf")}, "broken.urdf"},
+      {{"--model", "rbd", "--urdf", Urdf("two_link_arm.urdf"), "--tip", "nolink"}, "nolink"},
+      {{"--model", "rbd", "--urdf", Urdf("two_link_arm.urdf"), "--gravity", "0,-9.81"},
+       "--gravity: expected three numbers"},
+      {{"--model", "rbd", "--urdf", Urdf("puma560.urdf")}, "has 6 moving joints, the data have 2"},
+      {{"--model", "pol", "--tip", "tool"}, "--root/--tip"},
+  };
+  for (const Case& c : cases) {
+    std::vector<std::string> args = {"fit", "--data", data, "--out", out, "--quiet"};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    const Result r = RunCli(dir, args);
+    EXPECT_EQ(r.code, 2) << c.message << "\n" << r.err;
+    EXPECT_TRUE(Contains(r.err, c.message)) << "expected '" << c.message << "' in: " << r.err;
+    EXPECT_FALSE(fs::exists(out)) << c.message;
+  }
+}
+
+}  // namespace
+}  // namespace structgp
