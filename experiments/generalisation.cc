@@ -1,7 +1,7 @@
 // generalisation: slow -> fast on KDL-simulated arms, each model against the reference that
 // knows the answer (docs/generalisation.md).
 //
-//   generalisation [--robots=two_link,three_link,puma560] [--cases=none,friction]
+//   generalisation [--robots=two_link,three_link,puma560] [--cases=none,friction,payload]
 //                  [--models=reference,rbd+fri,rbd+fri/off30,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
 //                  [--out=FILE.csv]
@@ -44,6 +44,7 @@
 #include "experiment_program.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/internal/text.h"
+#include "structgp/rigid_body/physical_consistency.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/friction.h"
@@ -65,7 +66,7 @@ constexpr double kWidth = 0.01;        // rad/s, the friction tanh (the model's 
 
 struct Flags {
   std::vector<std::string> robots{"two_link", "three_link", "puma560"};
-  std::vector<std::string> cases{"none", "friction"};
+  std::vector<std::string> cases{"none", "friction", "payload"};
   std::vector<std::string> models{"reference", "rbd+fri", "rbd+fri/off30", "pol+fri", "rbf+fri"};
   double train_seconds = 50.0;
   int train_vias = 50;
@@ -95,12 +96,39 @@ struct Case {
   std::vector<sim::Dataset> tests;
   Vector noise;   // per joint, N m
   bool friction = false;
+  std::shared_ptr<const RigidBodyChain> truth;  // the simulated chain (armature, payload)
 };
 
-Case MakeCase(const sim::Robot& robot, bool friction, const Flags& f) {
-  const int N = robot.num_joints();
+// The chain with a point mass added to its last link, at `offset` in that link's frame.
+RigidBodyChain WithPayload(const RigidBodyChain& chain, double mass, const Eigen::Vector3d& c) {
+  Vector pi = chain.parameters();
+  const int k = 10 * (chain.num_joints() - 1);
+  pi[k] += mass;
+  pi.segment(k + 1, 3) += mass * c;
+  // Inertia about the link origin of a point mass: m (|c|^2 1 - c c^T); entries Ixx, Ixy, Ixz,
+  // Iyy, Iyz, Izz of the matrix.
+  const Eigen::Matrix3d I = mass * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
+  pi[k + 4] += I(0, 0);
+  pi[k + 5] += I(0, 1);
+  pi[k + 6] += I(0, 2);
+  pi[k + 7] += I(1, 1);
+  pi[k + 8] += I(1, 2);
+  pi[k + 9] += I(2, 2);
+  return chain.WithParameters(pi);
+}
+
+constexpr double kPayload = 2.0;  // kg
+
+Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& f) {
+  const int N = dh_robot.num_joints();
   Case c;
-  c.friction = friction;
+  c.friction = kind == "friction";
+  // "payload": 2 kg, 5 cm off the last link's origin along its z axis, unknown to the URDF.
+  c.truth = std::make_shared<const RigidBodyChain>(
+      kind == "payload" ? WithPayload(ChainOf(dh_robot, true), kPayload, {0.0, 0.0, 0.05})
+                        : ChainOf(dh_robot, true));
+  const sim::Robot robot = kind == "payload" ? sim::Robot::FromRigidBodyChain(*c.truth) : dh_robot;
+  const bool friction = c.friction;
   const sim::Trajectory slow = sim::ViaPoints(N, f.train_seconds, kDt, f.train_vias, 1.0, kRange, 1);
   const sim::Dataset clean = sim::Simulate(robot, slow);
   const Vector rms = (clean.Y.colwise().squaredNorm() / clean.Y.rows()).cwiseSqrt().transpose();
@@ -148,7 +176,27 @@ struct Row {
   int rows = 0;
   double seconds = 0;
   std::string note;
+  // Models with rigid-body parameters (rbd, the reference): the identified parameters.
+  bool identified = false;
+  double parameter_error = 0;     // |pi_hat - pi| / |pi|
+  double pd_fraction = 0;         // M(q) positive definite, of 1000 random configurations
+  int consistent_links = 0;       // of N
+  int directions = 0;             // identified directions (rbd)
+  double last_mass_change = 0;    // identified minus URDF mass of the last link, kg
 };
+
+// The identification columns of a row from the rigid-body parameters pi_hat.
+void Identification(const Case& c, const RigidBodyChain& urdf, const Vector& pi_hat, Row* row) {
+  const Vector& pi = c.truth->parameters();
+  const int N = c.truth->num_joints();
+  row->identified = true;
+  row->parameter_error = (pi_hat - pi).norm() / pi.norm();
+  const PhysicalConsistency pc = CheckPhysicalConsistency(*c.truth, pi_hat, 1000, 1);
+  row->pd_fraction = pc.mass_matrix_pd_fraction;
+  row->consistent_links = 0;
+  for (const LinkConsistency& l : pc.links) row->consistent_links += l.ok() ? 1 : 0;
+  row->last_mass_change = pi_hat[10 * (N - 1)] - urdf.parameters()[10 * (N - 1)];
+}
 
 // Stacked weighted least squares on the true regressor and friction bases.
 class Reference {
@@ -182,6 +230,7 @@ class Reference {
     }
     theta_ = A.colPivHouseholderQr().solve(b);
   }
+  const Vector& theta() const { return theta_; }
   Prediction Predict(const Matrix& X) const {
     const int N = chain_.num_joints();
     Prediction p{Matrix(X.rows(), N), Matrix(X.rows(), N)};
@@ -250,10 +299,11 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
   const auto start = std::chrono::steady_clock::now();
   std::vector<Prediction> predictions;
   if (name == "reference") {
-    Reference reference(ChainOf(robot, true), c.friction, c.noise);
+    Reference reference(*c.truth, c.friction, c.noise);
     reference.Fit(c.train.X, c.train.Y);
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (const auto& t : c.tests) predictions.push_back(reference.Predict(t.X));
+    Identification(c, *c.truth, reference.theta().head(c.truth->num_parameters()), &row);
   } else {
     std::string spec_text = name;
     bool off = false;
@@ -267,6 +317,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     }
     ModelSpec spec = ParseModelSpec(spec_text);
     if (!c.friction) spec.friction = false;  // the models are told which effects there are
+    row.model = ToString(spec) + (off ? "/off30" : "");
     FitOptions options;
     if (spec.base == BaseModel::kRbd) {
       RigidBodyChain chain = ChainOf(robot, false);
@@ -288,6 +339,11 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     row.note = fitted.summary.method_description;
     row.rows = fitted.summary.model_rows;
     for (const auto& t : c.tests) predictions.push_back(PredictModel(fitted.model, t.X));
+    if (const RegressorGP* gp = fitted.model.gp().regressor()) {
+      Identification(c, *options.model.rigid_body, gp->parameters().head(c.truth->num_parameters()),
+                     &row);
+      row.directions = gp->IdentifiedDirections();
+    }
   }
   Score(c, predictions, &row);
   return row;
@@ -309,11 +365,11 @@ int Run(const Flags& flags, int argc, char** argv) {
   for (const std::string& robot_name : f.robots) {
     const sim::Robot robot = MakeRobot(robot_name);
     for (const std::string& case_name : f.cases) {
-      if (case_name != "none" && case_name != "friction") {
+      if (case_name != "none" && case_name != "friction" && case_name != "payload") {
         throw std::invalid_argument("--cases: unknown case '" + case_name +
-                                    "' (expected none, friction)");
+                                    "' (expected none, friction, payload)");
       }
-      const Case c = MakeCase(robot, case_name == "friction", f);
+      const Case c = MakeCase(robot, case_name, f);
       for (const std::string& model : f.models) {
         Row row = RunModel(robot_name, case_name, model, robot, c);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
@@ -327,6 +383,17 @@ int Run(const Flags& flags, int argc, char** argv) {
         rows.push_back(row);
       }
     }
+  }
+  std::printf("\nIdentified rigid-body parameters (rbd: posterior mean; reference: least "
+              "squares):\n\n| robot | case | model | parameter error | M(q) PD | consistent "
+              "links | identified directions | last link mass change, kg |\n"
+              "|---|---|---|---|---|---|---|---|\n");
+  for (const Row& r : rows) {
+    if (!r.identified) continue;
+    std::printf("| %s | %s | %s | %.3g | %.1f%% | %d of %d | %s | %+.3g |\n", r.robot.c_str(),
+                r.kase.c_str(), r.model.c_str(), r.parameter_error, 100 * r.pd_fraction,
+                r.consistent_links, static_cast<int>(r.ratio.size()),
+                r.directions ? std::to_string(r.directions).c_str() : "-", r.last_mass_change);
   }
   if (!f.out.empty()) {
     std::ofstream out(f.out);
@@ -362,7 +429,7 @@ int main(int argc, char** argv) {
                "generalisation");
   structgp::Flags f;
   structgp::AddListFlag(&app, "--robots", &f.robots, "two_link, three_link, puma560");
-  structgp::AddListFlag(&app, "--cases", &f.cases, "none, friction");
+  structgp::AddListFlag(&app, "--cases", &f.cases, "none, friction, payload");
   structgp::AddListFlag(&app, "--models", &f.models,
                         "reference, or a model (rbd+fri, pol+fri, rbf+fri, ...), /off30 for rbd "
                         "with inertial parameters off by up to 30%");
