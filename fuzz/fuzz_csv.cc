@@ -3,6 +3,7 @@
 // A DataError is the expected outcome for a bad file; any other exception, a crash, a
 // sanitizer report or a result that breaks the documented guarantees is a finding.
 
+#include <algorithm>
 #include <unistd.h>
 
 #include <cmath>
@@ -49,7 +50,17 @@ void ReadAndCheck(const structgp::CsvOptions& options) {
   Check(data.X.cols() == 3 * n && data.Y.cols() == n && data.Y.rows() == m, "X is m x 3N, Y m x N");
   Check(data.t.size() == 0 || data.t.size() == m, "t has m entries or none");
   Check(data.line.size() == m, "one line number per row");
-  for (long i = 1; i < data.t.size(); ++i) Check(data.t[i] >= data.t[i - 1], "t non-decreasing");
+  // t is non-decreasing within each trajectory: the segments start where it decreases.
+  const std::vector<int> starts = data.segments();
+  Check(!starts.empty() && starts.front() == 0, "the first trajectory starts at row 0");
+  for (size_t s = 1; s < starts.size(); ++s) {
+    Check(starts[s] > starts[s - 1] && starts[s] < m, "trajectory starts increase within the rows");
+    Check(data.t[starts[s]] < data.t[starts[s] - 1], "a trajectory starts where t decreases");
+  }
+  for (long i = 1; i < data.t.size(); ++i) {
+    const bool start = std::find(starts.begin(), starts.end(), static_cast<int>(i)) != starts.end();
+    Check(start || data.t[i] >= data.t[i - 1], "t non-decreasing within a trajectory");
+  }
   Check(data.t.allFinite(), "t finite");
   if (!options.allow_non_finite) {
     Check(data.X.allFinite() && data.Y.allFinite(), "values finite");

@@ -398,6 +398,103 @@ namespace {
 
 std::string Urdf(const std::string& name) { return std::string(STRUCTGP_URDF_DIR) + "/" + name; }
 
+// The demo's slow log rewritten: as three trajectories whose time starts again at 0, and with
+// motor currents (torque / 0.08 A per N m) in place of the torques.
+struct UserLogs {
+  std::string trajectories, currents, torques;
+};
+
+UserLogs MakeUserLogs(const TempDir& dir) {
+  const std::string demo = dir.File("demo");
+  EXPECT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);
+  std::istringstream in(ReadFile(demo + "/train.csv"));
+  std::string header, line;
+  std::getline(in, header);
+  std::vector<std::vector<double>> rows;
+  while (std::getline(in, line)) {
+    std::vector<double> row;
+    std::stringstream cells(line);
+    std::string cell;
+    while (std::getline(cells, cell, ',')) row.push_back(std::stod(cell));
+    rows.push_back(row);
+  }
+  // Header "t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2".
+  EXPECT_EQ(header, "t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2");
+  UserLogs logs{dir.File("trajectories.csv"), dir.File("currents.csv"), demo + "/train.csv"};
+  std::ostringstream traj, cur;
+  traj.precision(17);
+  cur.precision(17);
+  traj << header << "\n";
+  cur << "t,q1,q2,qd1,qd2,qdd1,qdd2,cur1,cur2\n";
+  const size_t third = rows.size() / 3;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const size_t start = i < third ? 0 : i < 2 * third ? third : 2 * third;
+    for (size_t c = 0; c < rows[i].size(); ++c) {
+      traj << (c ? "," : "") << (c == 0 ? rows[i][0] - rows[start][0] : rows[i][c]);
+      cur << (c ? "," : "") << (c >= 7 ? rows[i][c] / 0.08 : rows[i][c]);
+    }
+    traj << "\n";
+    cur << "\n";
+  }
+  WriteFile(logs.trajectories, traj.str());
+  WriteFile(logs.currents, cur.str());
+  return logs;
+}
+
+TEST(CliUserLogs, SeveralTrajectoriesInOneFileFitPredictAndDiagnose) {
+  TempDir dir;
+  const UserLogs logs = MakeUserLogs(dir);
+  const std::string model = dir.File("m.json");
+  for (const char* hyper : {"ml", "cv"}) {
+    const Result fit = RunCli(dir, {"fit", "--data", logs.trajectories, "--model", "pol",
+                                    "--hyper", hyper, "--out", model, "--quiet"});
+    ASSERT_EQ(fit.code, 0) << hyper << ": " << fit.err;
+  }
+  const Result predict =
+      RunCli(dir, {"predict", "--model", model, "--data", logs.trajectories, "--out",
+                   dir.File("p.csv")});
+  ASSERT_EQ(predict.code, 0) << predict.err;
+  const Result diagnose = RunCli(dir, {"diagnose", "--model", model, "--data", logs.trajectories,
+                                       "--json", dir.File("f.json")});
+  ASSERT_EQ(diagnose.code, 0) << diagnose.err;
+  const Json findings = Json::parse(ReadFile(dir.File("f.json")));
+  ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
+  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
+  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+}
+
+TEST(CliUserLogs, MotorCurrentsFitPredictAndDiagnoseInCurrentUnits) {
+  TempDir dir;
+  const UserLogs logs = MakeUserLogs(dir);
+  const std::string current_model = dir.File("cur.json"), torque_model = dir.File("tau.json");
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", logs.currents, "--model", "pol", "--out", current_model,
+                         "--quiet"}).code, 0);
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", logs.torques, "--model", "pol", "--out", torque_model,
+                         "--quiet"}).code, 0);
+  const Result predict = RunCli(dir, {"predict", "--model", current_model, "--data", logs.currents,
+                                      "--out", dir.File("p.csv")});
+  ASSERT_EQ(predict.code, 0) << predict.err;
+  EXPECT_EQ(ReadFile(dir.File("p.csv")).substr(0, 29), "t,cur1_mean,cur1_std,cur2_mea");
+  // The same model up to the units: nMSE does not depend on them.
+  const Result e1 = RunCli(dir, {"evaluate", "--model", current_model, "--data", logs.currents,
+                                 "--json", dir.File("e1.json")});
+  const Result e2 = RunCli(dir, {"evaluate", "--model", torque_model, "--data", logs.torques,
+                                 "--json", dir.File("e2.json")});
+  ASSERT_EQ(e1.code, 0) << e1.err;
+  ASSERT_EQ(e2.code, 0) << e2.err;
+  const Json a = Json::parse(ReadFile(dir.File("e1.json")));
+  const Json b = Json::parse(ReadFile(dir.File("e2.json")));
+  const double na = a["overall"]["nmse"].get<double>(), nb = b["overall"]["nmse"].get<double>();
+  EXPECT_NEAR(na / nb, 1.0, 0.02) << a.dump() << "\n" << b.dump();
+  const Result diagnose = RunCli(dir, {"diagnose", "--model", current_model, "--data",
+                                       logs.currents, "--json", dir.File("f.json")});
+  ASSERT_EQ(diagnose.code, 0) << diagnose.err;
+  const Json findings = Json::parse(ReadFile(dir.File("f.json")));
+  ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
+  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
+  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+}
+
 TEST(CliUrdf, DemoOnAUrdfRobotFindsTheHiddenFrictionWithRbd) {
   TempDir dir;
   const std::string demo = dir.File("demo");

@@ -577,6 +577,36 @@ TEST(FitKernelHyperparameters, FeatureKernelMatchesWeightSpace) {
 
 // ---- cross-validation ---------------------------------------------------------------------------
 
+TEST(SegmentFolds, HoldOutWholeTrajectoriesWhenThereAreEnough) {
+  // Trajectories of unequal length: 0..29, 30..39, 40..99, 100..119, 120..149, 150..199.
+  const std::vector<int> starts = {0, 30, 40, 100, 120, 150};
+  for (int k : {2, 3, 4, 5, 6}) {
+    const auto folds = SegmentFolds(200, k, starts);
+    ASSERT_EQ(folds.size(), static_cast<size_t>(k));
+    EXPECT_EQ(folds.front().first, 0);
+    EXPECT_EQ(folds.back().second, 200);
+    for (size_t f = 0; f < folds.size(); ++f) {
+      EXPECT_LT(folds[f].first, folds[f].second) << "k " << k << " fold " << f;
+      if (f > 0) EXPECT_EQ(folds[f].first, folds[f - 1].second);
+      // Every boundary is the start of a trajectory.
+      EXPECT_NE(std::find(starts.begin(), starts.end(), folds[f].first), starts.end())
+          << "k " << k << " fold " << f << " begins inside a trajectory at " << folds[f].first;
+    }
+  }
+  // With as many folds as trajectories, each fold is one trajectory.
+  const auto six = SegmentFolds(200, 6, starts);
+  for (size_t f = 0; f < 6; ++f) EXPECT_EQ(six[f].first, starts[f]);
+  // Fewer trajectories than folds: the plain contiguous blocks.
+  EXPECT_EQ(SegmentFolds(200, 7, starts), ContiguousFolds(200, 7));
+  EXPECT_EQ(SegmentFolds(200, 5, {0}), ContiguousFolds(200, 5));
+  EXPECT_THROW(SegmentFolds(200, 3, {0, 50, 40}), std::invalid_argument);
+  EXPECT_THROW(SegmentFolds(200, 3, {10, 50}), std::invalid_argument);
+  EXPECT_EQ(SegmentStarts(Vector::LinSpaced(5, 0.0, 1.0)), (std::vector<int>{0}));
+  Vector t(6);
+  t << 0.0, 0.5, 0.5, 0.0, 1.0, 0.2;
+  EXPECT_EQ(SegmentStarts(t), (std::vector<int>{0, 3, 5}));
+}
+
 TEST(ContiguousFolds, CoverEveryRowOnceInTimeOrder) {
   for (const auto& [m, k] :
        std::vector<std::pair<int, int>>{{10, 1}, {10, 3}, {10, 10}, {97, 5}, {1000, 7}, {5, 2}}) {

@@ -54,13 +54,13 @@ class PredictCommand : public Command {
     std::vector<std::string> header;
     if (data.has_time()) header.push_back("t");
     for (int j = 1; j <= N; ++j) {
-      header.push_back("tau" + std::to_string(j) + "_mean");
-      header.push_back("tau" + std::to_string(j) + "_std");
+      header.push_back(data.target_prefix() + std::to_string(j) + "_mean");
+      header.push_back(data.target_prefix() + std::to_string(j) + "_std");
     }
     const std::vector<std::string> names =
         components_ ? model.ComponentNames() : std::vector<std::string>();
     for (int j = 1; j <= N; ++j) {
-      for (const auto& name : names) header.push_back("tau" + std::to_string(j) + "_" + name);
+      for (const auto& name : names) header.push_back(data.target_prefix() + std::to_string(j) + "_" + name);
     }
     Matrix values(m, static_cast<Eigen::Index>(header.size()));
     const Eigen::Index offset = data.has_time() ? 1 : 0;

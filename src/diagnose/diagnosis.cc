@@ -16,6 +16,7 @@
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/regressor_feature_map.h"
 #include "structgp/kernel/nystrom_feature_map.h"
+#include "structgp/core/segments.h"
 #include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/feature/feature_hyperparameters.h"
@@ -37,9 +38,10 @@ struct Candidate {
   bool alive = true;
 };
 
-// Folds as (begin, size): ContiguousFolds' blocks, in time order.
-std::vector<std::pair<int, int>> Folds(int m, int k) {
-  std::vector<std::pair<int, int>> folds = ContiguousFolds(m, k);
+// Folds as (begin, size): SegmentFolds' blocks (whole trajectories when the log has enough of
+// them), in time order.
+std::vector<std::pair<int, int>> Folds(int m, int k, const Vector& t) {
+  std::vector<std::pair<int, int>> folds = SegmentFolds(m, k, SegmentStarts(t));
   for (auto& fold : folds) fold.second -= fold.first;
   return folds;
 }
@@ -500,7 +502,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       col += static_cast<int>(E.cols());
     }
   }
-  const auto folds = Folds(m, options.folds);
+  const auto folds = Folds(m, options.folds, t);
   // Statistics of each fold; the total is their sum, a fold's training set the total minus it.
   std::vector<Matrix> fold_gram, fold_cross;
   Matrix G_total = Matrix::Zero(next_col, next_col), cross_total = Matrix::Zero(next_col, N);

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "structgp/core/row_subset.h"
+#include "structgp/core/segments.h"
 #include "structgp/core/validate.h"
 #include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
@@ -169,8 +170,8 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
   return fit->Report(s.BriefReport());
 }
 
-bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
-                                 std::string* failure) {
+bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, const ConstVectorRef& t,
+                                 Fit* fit, Hyperparameters* h, std::string* failure) {
   const FeatureMap& map = *fit->model()->feature_map();
   const FitOptions& o = fit->options();
   if (o.cv_folds > X.rows()) {
@@ -182,7 +183,8 @@ bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, Fit* fit, Hyp
                           o.cv_folds, static_cast<int>(X.rows()), map.dim()))) {
     return false;
   }
-  const FoldStatistics folds(map, X, Y, o.cv_folds);
+  // Whole trajectories per fold when the log holds enough of them (t restarts).
+  const FoldStatistics folds(map, X, Y, o.cv_folds, SegmentStarts(t));
   const Hyperparameters base = *h;
   std::vector<double> shape_values;
   if (map.num_shape_parameters() > 0) {
@@ -462,7 +464,7 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
                               : FeatureMapByEvidence(X, Y, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kCrossValidation:
-      go_on = FeatureMapByCrossValidation(X, Y, &fit, &h, &failure);
+      go_on = FeatureMapByCrossValidation(X, Y, t, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kFixed:
       summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";

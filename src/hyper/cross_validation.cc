@@ -44,22 +44,9 @@ double Variance(double n, double sum, double sum_squares) {
 
 }  // namespace
 
-std::vector<std::pair<int, int>> ContiguousFolds(int m, int k) {
-  if (k < 1 || k > m) {
-    throw std::invalid_argument("ContiguousFolds: expected 1 <= k <= m, got k = " +
-                                std::to_string(k) + ", m = " + std::to_string(m));
-  }
-  std::vector<std::pair<int, int>> folds;
-  folds.reserve(static_cast<size_t>(k));
-  const auto boundary = [m, k](int f) {
-    return static_cast<int>(static_cast<long long>(f) * m / k);
-  };
-  for (int f = 0; f < k; ++f) folds.emplace_back(boundary(f), boundary(f + 1));
-  return folds;
-}
-
 FoldStatistics::FoldStatistics(const FeatureMap& map, const ConstMatrixRef& X,
-                               const ConstMatrixRef& Y, int num_folds) {
+                               const ConstMatrixRef& Y, int num_folds,
+                               const std::vector<int>& segment_starts) {
   RequireSize("FoldStatistics X", X.cols(), map.input_dim(), "columns");
   RequireSize("FoldStatistics Y", Y.rows(), X.rows(), "rows (as in X)");
   if (Y.cols() < 1) throw std::invalid_argument("FoldStatistics: Y has no columns");
@@ -72,7 +59,7 @@ FoldStatistics::FoldStatistics(const FeatureMap& map, const ConstMatrixRef& X,
   RequireFinite("FoldStatistics Y", Y);
   const int D = map.dim();
   const int P = static_cast<int>(Y.cols());
-  folds_ = ContiguousFolds(m, num_folds);
+  folds_ = SegmentFolds(m, num_folds, segment_starts);
   total_ = SufficientStatistics(D, P);
   Matrix Phi;
   for (const auto& [begin, end] : folds_) {

@@ -47,16 +47,31 @@ std::string Join(const std::vector<std::string>& names) {
   return out;
 }
 
-// A column the reader uses: `t`, or joint `joint` (1-based) of block `block`.
+// A column the reader uses: `t`, or joint `joint` (1-based) of block `block`; `current` for
+// the targets written as motor currents (curN, in place of tauN).
 struct ColumnName {
   bool is_time = false;
   int block = 0;
   int joint = 0;
+  bool current = false;
 };
+
+// Motor currents in place of the torques.
+constexpr const char* kCurrentPrefix = "cur";
 
 bool ParseColumnName(std::string_view name, ColumnName* out) {
   if (name == "t") {
     *out = ColumnName{true, 0, 0};
+    return true;
+  }
+  const std::string_view cur = kCurrentPrefix;
+  if (name.size() > cur.size() && name.substr(0, cur.size()) == cur) {
+    const std::string_view digits = name.substr(cur.size());
+    if (digits[0] < '1' || digits[0] > '9') return false;
+    int joint = 0;
+    const auto result = std::from_chars(digits.data(), digits.data() + digits.size(), joint);
+    if (result.ec != std::errc() || result.ptr != digits.data() + digits.size()) return false;
+    *out = ColumnName{false, kNumBlocks - 1, joint, true};
     return true;
   }
   // Longest prefix first: "qdd3" must not be read as "q" + "dd3".
@@ -74,8 +89,9 @@ bool ParseColumnName(std::string_view name, ColumnName* out) {
   return false;
 }
 
-std::string CanonicalName(int block, int joint) {
-  return kBlockPrefix[block] + std::to_string(joint);
+std::string CanonicalName(int block, int joint, bool current = false) {
+  return (current ? std::string(kCurrentPrefix) : std::string(kBlockPrefix[block])) +
+         std::to_string(joint);
 }
 
 // What the reader does with each CSV column.
@@ -114,6 +130,7 @@ class CsvReader {
   std::string line_;
   std::vector<Cell> cells_;
   Layout layout_;
+  bool current_ = false;  // the targets are cur1..curN
 
   std::vector<double> values_;  // Row-major, 4N per row: q, qd, qdd, tau.
   std::vector<double> times_;
@@ -196,17 +213,29 @@ void CsvReader::ReadHeader() {
                " is missing; joints must be numbered 1..N without gaps)");
     }
   }
+  // The targets: tau1..tauN, or motor currents cur1..curN when no tau column is there.
+  bool any_tau = false;
+  for (int joint = 1; joint <= n; ++joint) any_tau |= first_seen.count(CanonicalName(3, joint)) > 0;
+  bool all_cur = !any_tau;
+  for (int joint = 1; joint <= n && all_cur; ++joint) {
+    all_cur = first_seen.count(CanonicalName(3, joint, true)) > 0;
+  }
+  current_ = all_cur;
   std::vector<std::string> missing;
   std::vector<std::string> present;
   for (int block = 0; block < kNumBlocks; ++block) {
     for (int joint = 1; joint <= n; ++joint) {
-      const std::string name = CanonicalName(block, joint);
+      const std::string name = CanonicalName(block, joint, block == 3 && current_);
       (first_seen.count(name) > 0 ? present : missing).push_back(name);
     }
   }
   if (!missing.empty()) {
+    const bool targets_missing = missing.back().rfind("tau", 0) == 0;
     Fail(1, 0, std::string(missing.size() == 1 ? "missing column " : "missing columns ") +
-                   Join(missing) + " (header has " + Join(present) + ")");
+                   Join(missing) + " (header has " + Join(present) + ")" +
+                   (targets_missing && !any_tau
+                        ? "; a log of motor currents names them cur1..curN instead of tau1..tauN"
+                        : ""));
   }
   if (options_.expected_joints > 0 && options_.expected_joints != n) {
     Fail(1, 0, "expected " + std::to_string(options_.expected_joints) +
@@ -216,6 +245,10 @@ void CsvReader::ReadHeader() {
   layout_.num_joints = n;
   layout_.role.assign(num_cells, -1);
   for (int c = 0; c < num_cells; ++c) {
+    // The other kind of target column (cur beside tau) is ignored.
+    if (recognised[c] && !parsed[c].is_time && parsed[c].current != (parsed[c].block == 3 && current_)) {
+      recognised[c] = false;
+    }
     if (!recognised[c]) continue;
     layout_.role[c] = parsed[c].is_time ? kNumBlocks * n
                                         : parsed[c].block * n + (parsed[c].joint - 1);
@@ -274,13 +307,8 @@ void CsvReader::ReadRow() {
       values_[row_start + role] = ParseCell(c, false);
       continue;
     }
-    const double time = ParseCell(c, true);
-    if (!times_.empty() && time < times_.back()) {
-      FailCell(c, "time goes backwards: " + Quoted(CellText(line_, cells_[c])) + " after " +
-                      Shortest(times_.back()) + " on line " + std::to_string(lines_.back()) +
-                      " (t must be non-decreasing)");
-    }
-    times_.push_back(time);
+    // A time below the previous one starts a new trajectory (core/segments.h).
+    times_.push_back(ParseCell(c, true));
   }
   lines_.push_back(reader_.line_number());
 }
@@ -301,6 +329,7 @@ RobotData CsvReader::Read() {
   if (!times_.empty()) data.t = Eigen::Map<const Eigen::VectorXd>(times_.data(), m);
   data.source = path_;
   data.line = Eigen::Map<const Eigen::VectorXi>(lines_.data(), m);
+  data.target = current_ ? RobotData::Target::kCurrent : RobotData::Target::kTorque;
   return data;
 }
 
@@ -396,7 +425,11 @@ void WriteRobotCsv(const std::string& path, const RobotData& data) {
   if (data.has_time()) values.col(0) = data.t;
   values.middleCols(offset, 3 * n) = data.X;
   values.rightCols(n) = data.Y;
-  WriteCsvAtomically(path, RobotCsvHeader(n, data.has_time()), values, 17);
+  std::vector<std::string> header = RobotCsvHeader(n, data.has_time());
+  if (data.target == RobotData::Target::kCurrent) {
+    for (int j = 0; j < n; ++j) header[header.size() - n + j] = CanonicalName(3, j + 1, true);
+  }
+  WriteCsvAtomically(path, header, values, 17);
 }
 
 }  // namespace structgp

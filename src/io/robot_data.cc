@@ -1,5 +1,7 @@
 #include "structgp/io/robot_data.h"
 
+#include "structgp/core/segments.h"
+
 #include <stdexcept>
 #include <string>
 
@@ -17,8 +19,11 @@ RobotData RobotData::Rows(int begin, int count) const {
   out.Y = Y.middleRows(begin, count);
   if (has_time()) out.t = t.segment(begin, count);
   out.source = source;
+  out.target = target;
   if (line.size() == X.rows()) out.line = line.segment(begin, count);
   return out;
 }
+
+std::vector<int> RobotData::segments() const { return SegmentStarts(t); }
 
 }  // namespace structgp

@@ -22,6 +22,7 @@
 
 #include "structgp/core/status.h"
 #include "structgp/core/row_subset.h"  // SelectRows
+#include "structgp/core/segments.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
@@ -29,20 +30,17 @@
 
 namespace structgp {
 
-/// k contiguous folds of rows 0..m-1, as half-open ranges [begin, end) in increasing order:
-/// fold f is [floor(f m / k), floor((f + 1) m / k)). They cover every row exactly once and
-/// their sizes differ by at most one. Throws std::invalid_argument unless 1 <= k <= m.
-std::vector<std::pair<int, int>> ContiguousFolds(int m, int k);
-
 /// The sufficient statistics of each contiguous fold of a data set, from one pass over it.
 /// Immutable after construction.
 class FoldStatistics {
  public:
-  /// X: m x map.input_dim(), Y: m x P (P >= 1), folds = ContiguousFolds(m, num_folds) with
-  /// 2 <= num_folds <= m. Features are evaluated in chunks of at most 512 rows. Throws
-  /// std::invalid_argument on bad sizes, a bad fold count or NaN/Inf.
+  /// X: m x map.input_dim(), Y: m x P (P >= 1), folds = SegmentFolds(m, num_folds,
+  /// segment_starts) with 2 <= num_folds <= m (core/segments.h: whole trajectories per fold
+  /// when the log has enough of them; the default, one segment, gives ContiguousFolds).
+  /// Features are evaluated in chunks of at most 512 rows. Throws std::invalid_argument on bad
+  /// sizes, a bad fold count, bad segment starts or NaN/Inf.
   FoldStatistics(const FeatureMap& map, const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                 int num_folds);
+                 int num_folds, const std::vector<int>& segment_starts = {0});
 
   int num_folds() const { return static_cast<int>(folds_.size()); }
   int num_features() const { return total_.num_features(); }

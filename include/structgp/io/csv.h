@@ -35,9 +35,10 @@ struct CsvOptions {
 /// not its name).
 ///
 /// Format: a header row, then one row per sample, cells separated by ','. The header names
-/// the columns q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN in any order, and optionally `t`
-/// (seconds, non-decreasing); N is the largest k with q1..qk all present, and all 4N
-/// columns must be there. Other columns are ignored (and not parsed). Whitespace around
+/// the columns q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN in any order (or cur1..curN, motor
+/// currents, in place of tau1..tauN: RobotData::target), and optionally `t` (seconds; a time
+/// below the previous row's starts a new trajectory, RobotData::segments()); N is the largest
+/// k with q1..qk all present, and all 4N columns must be there. Other columns are ignored (and not parsed). Whitespace around
 /// cells, a UTF-8 byte order mark, CRLF line endings and empty lines at the end are accepted.
 ///
 /// Throws DataError, naming the file, line and column, for anything wrong in the file; see
@@ -59,7 +60,8 @@ std::vector<std::string> RobotCsvHeader(int num_joints, bool with_time);
 void WriteCsvAtomically(const std::string& path, const std::vector<std::string>& header,
                         const Eigen::MatrixXd& values, int precision = 17);
 
-/// Writes `data` atomically with the canonical header (RobotCsvHeader) and 17 significant
+/// Writes `data` atomically with the canonical header (RobotCsvHeader; cur1..curN for currents)
+/// and 17 significant
 /// digits, so that ReadRobotCsv gives back exactly the same numbers. Throws
 /// std::invalid_argument when the sizes of X, Y and t do not agree with num_joints, DataError
 /// when the file cannot be written.

@@ -6,6 +6,7 @@
 /// accelerations with the joint torques they needed.
 
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -24,9 +25,17 @@ struct RobotData {
   Eigen::MatrixXd X;
   /// Targets, m x N: joint torques tau1..tauN [N m or N].
   Eigen::MatrixXd Y;
-  /// Time of each sample [s], m entries, non-decreasing; empty when the file has no `t`
-  /// column.
+  /// Time of each sample [s], m entries; empty when the file has no `t` column. Non-decreasing
+  /// within each trajectory: a log of several trajectories whose time starts again at each
+  /// holds one segment per trajectory (segments(), core/segments.h).
   Eigen::VectorXd t;
+  /// What Y holds: joint torques (tau1..tauN, N m), or motor currents (cur1..curN, in the
+  /// log's units) when the file has those instead. A model fitted to currents predicts
+  /// currents: each joint's torque constant and gear ratio become part of its output scale.
+  enum class Target { kTorque, kCurrent };
+  Target target = Target::kTorque;
+  /// "tau" or "cur": the prefix of Y's columns in files.
+  const char* target_prefix() const { return target == Target::kCurrent ? "cur" : "tau"; }
   /// The path the data came from (empty for data made in memory).
   std::string source;
   /// 1-based line of each row in `source`, so that later checks can point at the file;
@@ -37,6 +46,8 @@ struct RobotData {
   int size() const { return static_cast<int>(X.rows()); }
   /// True when the samples carry a time stamp (t is not empty).
   bool has_time() const { return t.size() > 0; }
+  /// First row of each trajectory: SegmentStarts(t) ({0} without times).
+  std::vector<int> segments() const;
 
   /// The `count` contiguous samples starting at sample `begin` (0-based), with their times
   /// and file lines. Throws std::invalid_argument unless 0 <= begin, 0 <= count and
