@@ -2,7 +2,7 @@
 // knows the answer (docs/generalisation.md).
 //
 //   generalisation [--robots=two_link,three_link,puma560] [--cases=none,friction,payload]
-//                  [--models=reference,rbd+fri,rbd+fri/off30,pol+fri,rbf+fri]
+//                  [--models=reference,rbd+fri,rbd+fri/off30,lag+fri,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
 //                  [--out=FILE.csv]
 //                  [--quick] [--check]
@@ -67,7 +67,8 @@ constexpr double kWidth = 0.01;        // rad/s, the friction tanh (the model's 
 struct Flags {
   std::vector<std::string> robots{"two_link", "three_link", "puma560"};
   std::vector<std::string> cases{"none", "friction", "payload"};
-  std::vector<std::string> models{"reference", "rbd+fri", "rbd+fri/off30", "pol+fri", "rbf+fri"};
+  std::vector<std::string> models{"reference", "rbd+fri", "rbd+fri/off30", "lag+fri", "pol+fri",
+                                  "rbf+fri"};
   double train_seconds = 50.0;
   int train_vias = 50;
   double noise = 0.01;
@@ -330,7 +331,13 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
       }
       options.model.rigid_body = std::make_shared<const RigidBodyChain>(chain);
     }
-    FittedModel fitted = FitModel(spec, c.train.X, c.train.Y, Vector(), options);
+    FittedModel fitted{RobotModel(ParseModelSpec("motor"), c.train.num_joints()), {}};
+    try {
+      fitted = FitModel(spec, c.train.X, c.train.Y, Vector(), options);
+    } catch (const std::invalid_argument& e) {
+      row.note = std::string("not available: ") + e.what();
+      return row;
+    }
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!fitted.summary.IsUsable()) {
       row.note = "fit failed: " + fitted.summary.message;
@@ -339,7 +346,8 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     row.note = fitted.summary.method_description;
     row.rows = fitted.summary.model_rows;
     for (const auto& t : c.tests) predictions.push_back(PredictModel(fitted.model, t.X));
-    if (const RegressorGP* gp = fitted.model.gp().regressor()) {
+    const RegressorGP* gp = fitted.model.gp().regressor();
+    if (gp != nullptr && spec.base == BaseModel::kRbd) {
       Identification(c, *options.model.rigid_body, gp->parameters().head(c.truth->num_parameters()),
                      &row);
       row.directions = gp->IdentifiedDirections();

@@ -267,12 +267,12 @@ bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameter
   return fit->Report(s.BriefReport());
 }
 
-// rbd models by evidence: the per-joint statistics of the regressor over every row, then LBFGS
+// rbd and lag models by evidence: the per-joint statistics of the regressor over every row, then LBFGS
 // over the block scales and the noise level of each joint.
 bool RegressorByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
                          std::string* failure) {
-  const RigidBodyRegressorMap& map = *fit->model()->regressor_map();
-  if (!fit->Report(Format("accumulating the rigid-body regressor's statistics over %d rows "
+  const SemiParametricRegressorMap& map = *fit->model()->regressor_map();
+  if (!fit->Report(Format("accumulating the regressor's statistics over %d rows "
                           "(P = %d parameters)",
                           static_cast<int>(X.rows()), map.dim()))) {
     return false;
@@ -513,13 +513,17 @@ namespace {
 // coefficients, how many rigid-body directions the data identified, and whether the identified
 // inertial parameters are physically consistent.
 void ReportRegressor(const RobotModel& model, const FitSummary& summary, std::ostream& os) {
-  const RigidBodyRegressorMap& map = *model.regressor_map();
+  const SemiParametricRegressorMap& map = *model.regressor_map();
+  const auto* rigid = dynamic_cast<const RigidBodyRegressorMap*>(&map.base());
   const RegressorGP& gp = *model.gp().regressor();
   const Hyperparameters& h = model.hyperparameters();
   const int N = model.num_joints();
-  const int P = map.num_rigid_body_parameters();
-  os << "parameters   P = " << map.dim() << " (" << P << " rigid-body of the chain "
-     << map.chain().root() << " -> " << map.chain().tip() << ", regressor form)\n";
+  const int P = map.base().dim();
+  os << "parameters   P = " << map.dim() << " (" << P
+     << (rigid ? " rigid-body of the chain " + rigid->chain().root() + " -> " +
+                     rigid->chain().tip()
+               : std::string(" of the Lagrangian, shared by all joints"))
+     << ", regressor form)\n";
   os << "hyper        " << summary.method_description
      << Format(", %.2f s", summary.total_seconds) << "\n";
   for (const auto& note : summary.notes) os << "             " << note << "\n";
@@ -537,13 +541,17 @@ void ReportRegressor(const RobotModel& model, const FitSummary& summary, std::os
   os << "  (one per joint)\n";
   os << "log marginal likelihood " << Format("%.6g", gp.LogMarginalLikelihood()) << " nats\n";
   os << "identified   " << gp.IdentifiedDirections() << " of " << map.dim()
-     << " parameter directions are determined by the data better than by the prior (the rest, "
-        "e.g. inertial combinations the motion does not excite, stay at the URDF's values)\n";
+     << " parameter directions are determined by the data better than by the prior"
+     << (rigid ? " (the rest, e.g. inertial combinations the motion does not excite, stay at "
+                 "the URDF's values)\n"
+               : "\n");
   const Vector theta = gp.parameters();
   const Vector std_dev = gp.ParameterStd();
-  const PhysicalConsistency consistency =
-      CheckPhysicalConsistency(map.chain(), theta.head(P), 200, 1);
-  os << "consistency  " << consistency.Summary() << "\n";
+  if (rigid) {
+    const PhysicalConsistency consistency =
+        CheckPhysicalConsistency(rigid->chain(), theta.head(P), 200, 1);
+    os << "consistency  " << consistency.Summary() << "\n";
+  }
   const auto names = model.ParametricFeatureNames();
   if (!names.empty()) {
     os << "coefficients (posterior mean +- std):\n";

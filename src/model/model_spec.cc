@@ -50,6 +50,7 @@ const char* ToString(BaseModel base) {
     case BaseModel::kRbfs: return "rbfs";
     case BaseModel::kMotor: return "motor";
     case BaseModel::kRbd: return "rbd";
+    case BaseModel::kLag: return "lag";
   }
   return "unknown";
 }
@@ -70,7 +71,8 @@ ModelSpec ParseModelSpec(const std::string& model) {
   }
   bool found = false;
   for (BaseModel b :
-       {BaseModel::kPol, BaseModel::kRbf, BaseModel::kRbfs, BaseModel::kMotor, BaseModel::kRbd}) {
+       {BaseModel::kPol, BaseModel::kRbf, BaseModel::kRbfs, BaseModel::kMotor, BaseModel::kRbd,
+        BaseModel::kLag}) {
     if (base == ToString(b)) {
       spec.base = b;
       found = true;
@@ -78,7 +80,7 @@ ModelSpec ParseModelSpec(const std::string& model) {
   }
   if (!found) {
     throw std::invalid_argument("model '" + model + "': unknown base '" + base +
-                                "' (expected one of pol, rbf, rbfs, motor, rbd, each optionally +fri)");
+                                "' (expected one of pol, rbf, rbfs, motor, rbd, lag, each optionally +fri)");
   }
   return spec;
 }

@@ -39,7 +39,7 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
     throw std::invalid_argument("RobotModelOptions.max_explicit_features must be >= 1, got " +
                                 std::to_string(options_.max_explicit_features));
   }
-  if (spec_.base == BaseModel::kRbd) {
+  if (spec_.base == BaseModel::kRbd || spec_.base == BaseModel::kLag) {
     BuildRegressor();
     return;
   }
@@ -124,19 +124,36 @@ void RobotModel::BuildFeatureMap() {
 }
 
 void RobotModel::BuildRegressor() {
-  if (!options_.rigid_body) {
-    throw std::invalid_argument(
-        "model 'rbd' needs the robot's kinematic chain (RobotModelOptions.rigid_body; at the "
-        "command line --urdf FILE)");
+  std::shared_ptr<const RegressorMap> base;
+  if (spec_.base == BaseModel::kRbd) {
+    if (!options_.rigid_body) {
+      throw std::invalid_argument(
+          "model 'rbd' needs the robot's kinematic chain (RobotModelOptions.rigid_body; at the "
+          "command line --urdf FILE)");
+    }
+    if (options_.rigid_body->num_joints() != num_joints_) {
+      throw std::invalid_argument(
+          "model 'rbd': the chain " + options_.rigid_body->root() + " -> " +
+          options_.rigid_body->tip() + " of " + options_.rigid_body->source() + " has " +
+          std::to_string(options_.rigid_body->num_joints()) + " moving joints, the data have " +
+          std::to_string(num_joints_));
+    }
+    base = std::make_shared<RigidBodyRegressorMap>(*options_.rigid_body);
+  } else {
+    if (num_joints_ > kMaxLagrangianJoints ||
+        LagrangianDimension(num_joints_) > options_.max_explicit_features) {
+      throw std::invalid_argument(
+          "model 'lag' for " + std::to_string(num_joints_) + " joints would have " +
+          (num_joints_ > kMaxLagrangianJoints
+               ? std::string("too many parameters")
+               : std::to_string(LagrangianDimension(num_joints_)) + " parameters") +
+          ", more than RobotModelOptions.max_explicit_features = " +
+          std::to_string(options_.max_explicit_features) +
+          " (lag serves up to 4 joints; with a URDF, rbd serves any)");
+    }
+    base = std::make_shared<LagrangianRegressorMap>(num_joints_);
   }
-  if (options_.rigid_body->num_joints() != num_joints_) {
-    throw std::invalid_argument(
-        "model 'rbd': the chain " + options_.rigid_body->root() + " -> " +
-        options_.rigid_body->tip() + " of " + options_.rigid_body->source() + " has " +
-        std::to_string(options_.rigid_body->num_joints()) + " moving joints, the data have " +
-        std::to_string(num_joints_));
-  }
-  RigidBodyRegressorOptions options;
+  SemiParametricOptions options;
   options.friction = spec_.friction;
   options.friction_width = options_.friction_width;
   options.with_time = uses_time_;
@@ -145,9 +162,9 @@ void RobotModel::BuildRegressor() {
         RegressorEffect{ToString(e), std::shared_ptr<const Effect>(MakeEffect(e.name, e.params)),
                         e.joints});
   }
-  regressor_ = std::make_shared<RigidBodyRegressorMap>(*options_.rigid_body, options);
+  regressor_ = std::make_shared<SemiParametricRegressorMap>(base, options);
   const std::vector<std::string> names = regressor_->parameter_names();
-  for (int k = regressor_->num_rigid_body_parameters(); k < regressor_->dim(); ++k) {
+  for (int k = base->dim(); k < regressor_->dim(); ++k) {
     parametric_names_.emplace_back(names[static_cast<size_t>(k)], k);
   }
 }
@@ -179,8 +196,8 @@ Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) cons
   RequireSize("RobotModel::DefaultHyperparameters Y", Y.cols(), num_joints_, "columns (joints)");
   Hyperparameters h;
   if (regressor_) {
-    // The rigid-body prior at its own scale (feature/rigid_body_regressor_map.h); friction and
-    // effects broad, relative to the largest torque spread.
+    // The base's prior at its own scale (rbd: feature/rigid_body_regressor_map.h); friction and
+    // effects broad, relative to the largest torque spread. lag's unit prior is scaled to it.
     const auto blocks = regressor_->blocks();
     double spread = 0.0;
     for (int j = 0; j < num_joints_; ++j) {
@@ -189,7 +206,11 @@ Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) cons
     h.log_block_scale = Vector::Constant(static_cast<Eigen::Index>(blocks.size()),
                                          std::log(options_.broad_prior_std *
                                                   (spread > 1e-12 ? spread : 1.0)));
-    h.log_block_scale[0] = 0.0;
+    const int base_blocks = static_cast<int>(regressor_->base().blocks().size());
+    for (int b = 0; b < base_blocks; ++b) {
+      h.log_block_scale[b] =
+          spec_.base == BaseModel::kRbd ? 0.0 : std::log(spread > 1e-12 ? spread : 1.0);
+    }
     h.log_output_scale = Vector::Zero(num_joints_);
   } else if (map_) {
     h = structgp::DefaultHyperparameters(*map_, num_joints_);

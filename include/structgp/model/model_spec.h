@@ -5,7 +5,7 @@
 /// What a robot model is made of, parsed once from the text users write at the command line
 /// ("pol+fri" and "coulomb@2,viscous,cogging@3:period=0.3") into typed values.
 ///
-/// Model grammar:  base ["+fri"]   with base one of pol, rbf, rbfs, motor, rbd.
+/// Model grammar:  base ["+fri"]   with base one of pol, rbf, rbfs, motor, rbd, lag.
 /// Effect grammar: item ("," item)*,  item = name ["@" joints] [":" key "=" value (";" key "=" value)*]
 ///                 joints = j ("/" j)*  (1-based; no "@" means every joint)
 /// e.g. "coulomb@2", "viscous", "cogging@3:period=0.3;harmonics=2", "stribeck@1/2:velocity=0.05".
@@ -22,9 +22,10 @@ enum class BaseModel {
   kRbfs,   ///< squared-exponential kernel on (cos q, sin q, qd, qdd) (eq. 33)
   kMotor,  ///< the linear motor model c1 qdd + c2 qd per joint (eq. 54)
   kRbd,    ///< the rigid-body regressor of a known chain (URDF), inertial parameters identified
+  kLag,    ///< the Lagrangian regressor of a serial chain, kinematics unknown (one M(q), V(q))
 };
 
-/// "pol", "rbf", "rbfs", "motor", "rbd".
+/// "pol", "rbf", "rbfs", "motor", "rbd", "lag".
 const char* ToString(BaseModel base);
 
 /// An effect as written: MakeEffect(name, params) builds it (feature/effects.h), checking the

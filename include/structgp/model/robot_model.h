@@ -22,7 +22,9 @@
 /// torque is linear in the links' inertial parameters, shared by every joint, with a prior
 /// centred on the chain's values; friction and effects add per-joint columns. It runs as a
 /// RegressorGP (GaussianProcess's kRegressor form) with one noise level per joint
-/// (feature/rigid_body_regressor_map.h has the prior).
+/// (feature/rigid_body_regressor_map.h has the prior). lag is the Lagrangian regressor of a serial
+/// chain whose kinematics are not known (feature/lagrangian_regressor_map.h): one M(q) and V(q)
+/// for all joints, in the same regressor form, up to max_explicit_features parameters (N <= 4).
 
 #include <memory>
 #include <string>
@@ -32,7 +34,9 @@
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
+#include "structgp/feature/lagrangian_regressor_map.h"
 #include "structgp/feature/rigid_body_regressor_map.h"
+#include "structgp/feature/semi_parametric_regressor_map.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/model/gaussian_process.h"
@@ -103,8 +107,11 @@ class RobotModel {
 
   /// The feature map (null for rbf/rbfs bases).
   const std::shared_ptr<const FeatureMap>& feature_map() const { return map_; }
-  /// The regressor of rbd models (null otherwise).
-  const std::shared_ptr<const RigidBodyRegressorMap>& regressor_map() const { return regressor_; }
+  /// The regressor of rbd and lag models (null otherwise): the base's columns, then friction
+  /// and effects.
+  const std::shared_ptr<const SemiParametricRegressorMap>& regressor_map() const {
+    return regressor_;
+  }
   /// The hyper-parameters of the last successful Fit (empty before): for a feature map its
   /// shape parameters and block scales, for a kernel its parameters in shape (see
   /// core/hyperparameters.h), and the noise and output scales of both.
@@ -190,7 +197,7 @@ class RobotModel {
   RobotModelOptions options_;
   bool uses_time_ = false;
   std::shared_ptr<const FeatureMap> map_;
-  std::shared_ptr<const RigidBodyRegressorMap> regressor_;
+  std::shared_ptr<const SemiParametricRegressorMap> regressor_;
   std::vector<Part> parts_;                                   // component ranges in phi
   std::vector<std::pair<std::string, int>> parametric_names_;  // feature name -> index
   std::unique_ptr<Kernel> kernel_;  // at hyper_.shape once fitted

@@ -1,0 +1,74 @@
+#ifndef STRUCTGP_FEATURE_LAGRANGIAN_REGRESSOR_MAP_H_
+#define STRUCTGP_FEATURE_LAGRANGIAN_REGRESSOR_MAP_H_
+
+/// @file
+/// The Lagrangian regressor of an N-joint serial chain of revolute joints, without its
+/// kinematics: the base of the `lag` models. The torques follow from a Lagrangian
+///     L(q, qd) = 1/2 qd^T M(q) qd - V(q)
+/// by the Euler-Lagrange equations,
+///     tau_i = sum_k M_ik qdd_k + sum_jk (dM_ij/dq_k - 1/2 dM_jk/dq_i) qd_j qd_k + dV/dq_i,
+/// with M(q) symmetric by construction and every entry, and V, linear in parameters theta shared
+/// by all joints: one parameter vector explains every joint, and the Coriolis and centrifugal
+/// torques, which slow motion hardly shows, follow from the same parameters as the inertia.
+///
+/// The spaces are those of a serial chain of revolute joints (facts of rigid-body mechanics):
+/// M_jk depends only on the joints after min(j, k), each angle entering as a trigonometric
+/// polynomial of degree 2 (Fourier basis 1, cos q, sin q, cos 2q, sin 2q), so M_jk has
+/// 5^(N - min(j, k)) basis functions (1-based j, k); the armature is part of M_jj's constant.
+/// V (gravity) is a trigonometric polynomial of degree 1 in every angle (1, cos q, sin q): 3^N - 1
+/// basis functions (the constant does not act). P = sum_{j <= k} 5^(N - min(j, k)) + 3^N - 1 =
+/// 3, 19, 112, 666, 3953 for N = 1..5 (LagrangianDimension); parameters are named like
+/// "M1,2[cos q2 sin2 q3]" and "V[cos q1 sin q2]". Compare pol's 12, 133, 1151, 8830 features per
+/// joint for N = 1..4, each joint with its own weights.
+///
+/// Blocks: "kinetic" (the entries of M), "potential" (V); unit prior standard deviations.
+/// Components: "inertial" (M qdd), "coriolis" (the qd terms), "gravity" (dV/dq).
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "structgp/feature/regressor_map.h"
+
+namespace structgp {
+
+/// Largest number of joints of a LagrangianRegressorMap (its stack arrays).
+inline constexpr int kMaxLagrangianJoints = 7;
+
+/// Number of parameters of the Lagrangian regressor of N joints (1 <= N <= kMaxLagrangianJoints).
+int LagrangianDimension(int num_joints);
+
+class LagrangianRegressorMap final : public RegressorMap {
+ public:
+  /// Throws std::invalid_argument unless 1 <= num_joints <= kMaxLagrangianJoints.
+  explicit LagrangianRegressorMap(int num_joints);
+
+  int input_dim() const override { return 3 * num_joints_; }
+  int num_outputs() const override { return num_joints_; }
+  int dim() const override { return static_cast<int>(params_.size()); }
+  int num_kinetic() const { return num_kinetic_; }
+  using RegressorMap::Evaluate;
+  void Evaluate(const ConstVectorRef& x, MatrixRef psi, Scratch* scratch) const override;
+  std::vector<FeatureBlock> blocks() const override;
+  std::vector<std::string> parameter_names() const override;
+  std::vector<std::string> component_names() const override;
+  void EvaluateComponent(int component, const ConstVectorRef& x, MatrixRef psi,
+                         Scratch* scratch) const override;
+
+ private:
+  struct Param {
+    int a = 0, b = 0;  // M_ab (a <= b, 0-based), or a = b = -1 for V
+    std::array<std::int8_t, kMaxLagrangianJoints> index{};  // basis per angle (0: constant)
+  };
+  // parts: bit 0 inertial, bit 1 coriolis, bit 2 gravity.
+  void Fill(const ConstVectorRef& x, MatrixRef psi, int parts) const;
+
+  int num_joints_;
+  int num_kinetic_ = 0;
+  std::vector<Param> params_;
+};
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_FEATURE_LAGRANGIAN_REGRESSOR_MAP_H_

@@ -1,0 +1,165 @@
+#include "structgp/feature/lagrangian_regressor_map.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace structgp {
+namespace {
+
+constexpr int kKineticBases = 5;    // 1, cos q, sin q, cos 2q, sin 2q
+constexpr int kPotentialBases = 3;  // 1, cos q, sin q
+const char* const kBasisName[kKineticBases] = {"", "cos", "sin", "cos2", "sin2"};
+
+int Power(int base, int exponent) {
+  int out = 1;
+  for (int i = 0; i < exponent; ++i) out *= base;
+  return out;
+}
+
+void Check(int num_joints) {
+  if (num_joints < 1 || num_joints > kMaxLagrangianJoints) {
+    throw std::invalid_argument("LagrangianRegressorMap: expected 1.." +
+                                std::to_string(kMaxLagrangianJoints) + " joints, got " +
+                                std::to_string(num_joints));
+  }
+}
+
+}  // namespace
+
+int LagrangianDimension(int num_joints) {
+  Check(num_joints);
+  int P = Power(kPotentialBases, num_joints) - 1;
+  for (int a = 0; a < num_joints; ++a) P += (num_joints - a) * Power(kKineticBases, num_joints - 1 - a);
+  return P;
+}
+
+LagrangianRegressorMap::LagrangianRegressorMap(int num_joints) : num_joints_(num_joints) {
+  Check(num_joints);
+  const int N = num_joints;
+  for (int a = 0; a < N; ++a) {
+    for (int b = a; b < N; ++b) {
+      // M_ab depends on the angles a+1..N-1, each with one of the five bases.
+      const int count = Power(kKineticBases, N - 1 - a);
+      for (int code = 0; code < count; ++code) {
+        Param p;
+        p.a = a;
+        p.b = b;
+        int rest = code;
+        for (int l = a + 1; l < N; ++l) {
+          p.index[static_cast<size_t>(l)] = static_cast<std::int8_t>(rest % kKineticBases);
+          rest /= kKineticBases;
+        }
+        params_.push_back(p);
+      }
+    }
+  }
+  num_kinetic_ = static_cast<int>(params_.size());
+  const int count = Power(kPotentialBases, N);
+  for (int code = 1; code < count; ++code) {  // code 0 is the constant
+    Param p;
+    p.a = p.b = -1;
+    int rest = code;
+    for (int l = 0; l < N; ++l) {
+      p.index[static_cast<size_t>(l)] = static_cast<std::int8_t>(rest % kPotentialBases);
+      rest /= kPotentialBases;
+    }
+    params_.push_back(p);
+  }
+}
+
+std::vector<FeatureBlock> LagrangianRegressorMap::blocks() const {
+  return {{"kinetic", 0, num_kinetic_}, {"potential", num_kinetic_, dim() - num_kinetic_}};
+}
+
+std::vector<std::string> LagrangianRegressorMap::parameter_names() const {
+  std::vector<std::string> names;
+  for (const Param& p : params_) {
+    std::string basis;
+    for (int l = 0; l < num_joints_; ++l) {
+      const int i = p.index[static_cast<size_t>(l)];
+      if (i == 0) continue;
+      basis += (basis.empty() ? "" : " ") + std::string(kBasisName[i]) + " q" + std::to_string(l + 1);
+    }
+    names.push_back((p.a < 0 ? std::string("V")
+                             : "M" + std::to_string(p.a + 1) + "," + std::to_string(p.b + 1)) +
+                    "[" + (basis.empty() ? "1" : basis) + "]");
+  }
+  return names;
+}
+
+std::vector<std::string> LagrangianRegressorMap::component_names() const {
+  return {"inertial", "coriolis", "gravity"};
+}
+
+void LagrangianRegressorMap::Fill(const ConstVectorRef& x, MatrixRef psi, int parts) const {
+  const int N = num_joints_;
+  // Per angle: the bases and their derivatives.
+  double B[kMaxLagrangianJoints][kKineticBases], dB[kMaxLagrangianJoints][kKineticBases];
+  for (int l = 0; l < N; ++l) {
+    const double c = std::cos(x[l]), s = std::sin(x[l]);
+    const double c2 = c * c - s * s, s2 = 2.0 * s * c;
+    B[l][0] = 1.0;
+    B[l][1] = c;
+    B[l][2] = s;
+    B[l][3] = c2;
+    B[l][4] = s2;
+    dB[l][0] = 0.0;
+    dB[l][1] = -s;
+    dB[l][2] = c;
+    dB[l][3] = -2.0 * s2;
+    dB[l][4] = 2.0 * c2;
+  }
+  const double* qd = x.data() + N;
+  const double* qdd = x.data() + 2 * N;
+  psi.setZero();
+  double grad[kMaxLagrangianJoints];
+  for (int k = 0; k < dim(); ++k) {
+    const Param& p = params_[static_cast<size_t>(k)];
+    const bool kinetic = p.a >= 0;
+    if (kinetic ? (parts & 3) == 0 : (parts & 4) == 0) continue;
+    const int first = kinetic ? p.a + 1 : 0;
+    // The basis function and its gradient over the angles it depends on.
+    double value = 1.0;
+    for (int l = first; l < N; ++l) value *= B[l][p.index[static_cast<size_t>(l)]];
+    for (int l = first; l < N; ++l) {
+      double g = dB[l][p.index[static_cast<size_t>(l)]];
+      for (int m = first; m < N && g != 0.0; ++m) {
+        if (m != l) g *= B[m][p.index[static_cast<size_t>(m)]];
+      }
+      grad[l] = g;
+    }
+    if (!kinetic) {
+      for (int i = first; i < N; ++i) psi(i, k) = grad[i];
+      continue;
+    }
+    const int a = p.a, b = p.b;
+    if (parts & 1) {  // M qdd
+      psi(a, k) += value * qdd[b];
+      if (a != b) psi(b, k) += value * qdd[a];
+    }
+    if (parts & 2) {  // sum_jk (dM_ij/dq_k - 1/2 dM_jk/dq_i) qd_j qd_k
+      double rate = 0.0;  // d(basis)/dt = grad . qd
+      for (int l = first; l < N; ++l) rate += grad[l] * qd[l];
+      psi(a, k) += qd[b] * rate;
+      if (a != b) psi(b, k) += qd[a] * rate;
+      const double w = a == b ? qd[a] * qd[a] : 2.0 * qd[a] * qd[b];
+      for (int i = first; i < N; ++i) psi(i, k) -= 0.5 * grad[i] * w;
+    }
+  }
+}
+
+void LagrangianRegressorMap::Evaluate(const ConstVectorRef& x, MatrixRef psi, Scratch*) const {
+  Fill(x, psi, 7);
+}
+
+void LagrangianRegressorMap::EvaluateComponent(int component, const ConstVectorRef& x,
+                                               MatrixRef psi, Scratch*) const {
+  if (component < 0 || component >= 3) {
+    throw std::invalid_argument("LagrangianRegressorMap::EvaluateComponent: component " +
+                                std::to_string(component) + " out of range [0, 3)");
+  }
+  Fill(x, psi, 1 << component);
+}
+
+}  // namespace structgp
