@@ -42,7 +42,7 @@ class PredictCommand : public Command {
     const RobotModel model = LoadModel(model_);
     if (components_ && model.regressor_map() == nullptr &&
         (model.feature_map() == nullptr || model.gp().weight_space() == nullptr)) {
-      throw UsageError("--components: needs a weight-space pol or motor model, or rbd; '" + model_ +
+      throw UsageError("--components: needs a weight-space pol or motor model, or rbd or lag; '" + model_ +
                        "' is " + ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) +
                        " form");
     }
