@@ -42,6 +42,7 @@
 #include <Eigen/QR>
 
 #include "experiment_program.h"
+#include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/internal/text.h"
 #include "structgp/rigid_body/physical_consistency.h"
@@ -71,6 +72,7 @@ struct Flags {
                                   "rbf+fri"};
   double train_seconds = 50.0;
   int train_vias = 50;
+  int train_rows = 0;  // 0: all
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -82,6 +84,8 @@ sim::Robot MakeRobot(const std::string& name) {
   if (name == "two_link") return sim::TwoLinkArm();
   if (name == "three_link") return sim::ThreeLinkArm();
   if (name == "puma560") return sim::Puma560();
+  if (name == "random4") return sim::RandomRobot(4, 1);
+  if (name == "random7") return sim::RandomRobot(7, 1);
   throw std::invalid_argument("--robots: unknown robot '" + name +
                               "' (expected two_link, three_link, puma560, panda)");
 }
@@ -157,6 +161,13 @@ Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& 
     return d;
   };
   c.train = simulate(slow, 1001);
+  if (f.train_rows > 0 && f.train_rows < c.train.X.rows()) {
+    // Fewer training rows: evenly spaced over the whole slow log (core/row_subset.h).
+    const std::vector<int> rows = EvenlySpacedRows(c.train.X.rows(), f.train_rows);
+    c.train.X = SelectRows(c.train.X, rows);
+    c.train.Y = SelectRows(c.train.Y, rows);
+    c.train.t = SelectRows(c.train.t, rows);
+  }
   for (int k = 0; k < f.tests; ++k) {
     const auto seed = static_cast<std::uint64_t>(2 + k);
     c.tests.push_back(simulate(
@@ -436,7 +447,7 @@ int main(int argc, char** argv) {
   CLI::App app("Slow -> fast generalisation on KDL-simulated arms (docs/generalisation.md)",
                "generalisation");
   structgp::Flags f;
-  structgp::AddListFlag(&app, "--robots", &f.robots, "two_link, three_link, puma560");
+  structgp::AddListFlag(&app, "--robots", &f.robots, "two_link, three_link, puma560, random4 and random7 (sim::RandomRobot(N, 1))");
   structgp::AddListFlag(&app, "--cases", &f.cases, "none, friction, payload");
   structgp::AddListFlag(&app, "--models", &f.models,
                         "reference, or a model (rbd+fri, pol+fri, rbf+fri, ...), /off30 for rbd "
@@ -445,6 +456,9 @@ int main(int argc, char** argv) {
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--train-vias", &f.train_vias, "via points of the slow log")
       ->check(structgp::AtLeast(2));
+  structgp::AddFlag(&app, "--train-rows", &f.train_rows,
+                    "keep this many evenly spaced rows of the slow log (0: all)")
+      ->check(structgp::AtLeast(0));
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));

@@ -137,7 +137,17 @@ TEST(LagrangianRegressorMap, SizesNamesAndErrors) {
   EXPECT_EQ(names[1], "M1,1[cos q2]");
   EXPECT_EQ(names[10], "M2,2[1]");
   EXPECT_EQ(names[11], "V[cos q1]");
-  EXPECT_EQ(map.blocks().size(), 2u);
+  // Blocks by the earliest link that can produce a term: M_11's constant needs link 1, any
+  // term with q2 or of M_12, M_22 needs link 2.
+  const std::vector<FeatureBlock> blocks = map.blocks();
+  ASSERT_EQ(blocks.size(), 4u);
+  EXPECT_EQ(blocks[0].name, "kinetic 1");
+  EXPECT_EQ(blocks[0].size, 1);
+  EXPECT_EQ(blocks[1].name, "kinetic 2");
+  EXPECT_EQ(blocks[1].size, 10);
+  EXPECT_EQ(blocks[2].name, "potential 1");
+  EXPECT_EQ(blocks[2].size, 2);  // cos q1, sin q1
+  EXPECT_EQ(blocks[3].name, "potential 2");
   EXPECT_THROW(LagrangianRegressorMap(0), std::invalid_argument);
   EXPECT_THROW(LagrangianRegressorMap(kMaxLagrangianJoints + 1), std::invalid_argument);
   Matrix psi(2, map.dim());

@@ -1,5 +1,6 @@
 #include "structgp/feature/lagrangian_regressor_map.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -66,10 +67,39 @@ LagrangianRegressorMap::LagrangianRegressorMap(int num_joints) : num_joints_(num
     }
     params_.push_back(p);
   }
+  // The earliest link that can produce each term, and the parameters ordered by it (stable:
+  // within a link, M_ab then its bases as enumerated), kinetic first.
+  auto link_of = [N](const Param& p) {
+    int link = p.a >= 0 ? p.b : 0;
+    for (int l = 0; l < N; ++l) {
+      if (p.index[static_cast<size_t>(l)] != 0) link = std::max(link, l);
+    }
+    return link;
+  };
+  std::stable_sort(params_.begin(), params_.begin() + num_kinetic_,
+                   [&](const Param& x, const Param& y) { return link_of(x) < link_of(y); });
+  std::stable_sort(params_.begin() + num_kinetic_, params_.end(),
+                   [&](const Param& x, const Param& y) { return link_of(x) < link_of(y); });
+  for (const Param& p : params_) link_.push_back(link_of(p));
 }
 
 std::vector<FeatureBlock> LagrangianRegressorMap::blocks() const {
-  return {{"kinetic", 0, num_kinetic_}, {"potential", num_kinetic_, dim() - num_kinetic_}};
+  // Blocks follow the parameters' order (see the constructor): "kinetic L" and "potential L"
+  // hold the terms that only links L..N can produce (a term of M_ab or V that varies with q_l
+  // needs a link at or after l; M_ab at all, a link at or after max(a, b)), so that a light
+  // wrist gets a small prior scale of its own.
+  std::vector<FeatureBlock> out;
+  for (int k = 0; k < dim(); ++k) {
+    const std::string name = std::string(params_[static_cast<size_t>(k)].a >= 0 ? "kinetic "
+                                                                                 : "potential ") +
+                             std::to_string(link_[static_cast<size_t>(k)] + 1);
+    if (!out.empty() && out.back().name == name) {
+      ++out.back().size;
+    } else {
+      out.push_back(FeatureBlock{name, k, 1});
+    }
+  }
+  return out;
 }
 
 std::vector<std::string> LagrangianRegressorMap::parameter_names() const {

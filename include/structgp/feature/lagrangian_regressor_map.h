@@ -21,7 +21,10 @@
 /// "M1,2[cos q2 sin2 q3]" and "V[cos q1 sin q2]". Compare pol's 12, 133, 1151, 8830 features per
 /// joint for N = 1..4, each joint with its own weights.
 ///
-/// Blocks: "kinetic" (the entries of M), "potential" (V); unit prior standard deviations.
+/// Blocks: "kinetic L" and "potential L" (L = 1..N) hold the terms of M and of V that only links
+/// L..N can produce (a term that varies with q_l needs a link at or after l; any term of M_ab a
+/// link at or after max(a, b)), each with its own prior scale, so that a light wrist is not
+/// given the base's; the parameters are ordered by block. Unit prior standard deviations.
 /// Components: "inertial" (M qdd), "coriolis" (the qd terms), "gravity" (dV/dq).
 
 #include <array>
@@ -67,6 +70,7 @@ class LagrangianRegressorMap final : public RegressorMap {
   int num_joints_;
   int num_kinetic_ = 0;
   std::vector<Param> params_;
+  std::vector<int> link_;  // per parameter: the earliest link (0-based) that can produce it
 };
 
 }  // namespace structgp
