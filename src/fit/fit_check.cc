@@ -65,6 +65,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
       (hyper.log_noise_std + hyper.log_output_scale.array()).exp().matrix();
 
   std::vector<int> absurd(static_cast<size_t>(N), 0);
+  std::vector<int> confident(static_cast<size_t>(N), 0);
   std::vector<double> excursion(static_cast<size_t>(N), 0.0);
   int skipped = 0;
   for (const auto& [begin, end] : ContiguousFolds(m, options.folds)) {
@@ -87,11 +88,14 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
             std::max({0.0, mu - (hi[j] + margin), (lo[j] - margin) - mu});
         if (!std::isfinite(mu)) {
           ++absurd[static_cast<size_t>(j)];
+          ++confident[static_cast<size_t>(j)];
           continue;
         }
         const double std = std::hypot(latent_std(i, j), noise_std[j]);
-        if (outside > 0.0 && outside > options.confidence_sigmas * std) {
-          ++absurd[static_cast<size_t>(j)];
+        if (outside > 0.0) {
+          const bool sure = outside > options.confidence_sigmas * std;
+          if (sure) ++confident[static_cast<size_t>(j)];
+          if (sure || !options.count_only_confident) ++absurd[static_cast<size_t>(j)];
         }
         const double beyond = std::max({0.0, mu - hi[j], lo[j] - mu}) / span[j];
         excursion[static_cast<size_t>(j)] = std::max(excursion[static_cast<size_t>(j)], beyond);
@@ -109,6 +113,8 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     if (fraction > check.worst_fraction) {
       check.worst_joint = j + 1;
       check.worst_fraction = fraction;
+      check.worst_confident_fraction =
+          static_cast<double>(confident[static_cast<size_t>(j)]) / check.rows;
     }
   }
   double largest = 0.0;
@@ -133,10 +139,11 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   } else {
     check.message = Format(
         "held-out check failed (%s): %.1f%% of joint %d's held-out predictions lie more than "
-        "%.3g spans outside its training torque range with a predictive std below 1/%.3g of that "
-        "distance (up to %.3g spans outside)",
+        "%.3g spans outside its training torque range (up to %.3g spans; %.1f%% by more than "
+        "%.3g predictive std)",
         folds_text.c_str(), 100.0 * check.worst_fraction, check.worst_joint,
-        options.range_margin, options.confidence_sigmas, check.worst_excursion);
+        options.range_margin, check.worst_excursion, 100.0 * check.worst_confident_fraction,
+        options.confidence_sigmas);
   }
   return check;
 }
