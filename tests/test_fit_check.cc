@@ -116,8 +116,9 @@ TEST(CheckOnHeldOutBlocks, PassesSaneModels) {
                std::invalid_argument);
 }
 
-// FitModel on the absurd log: the check fails for every start and every prior, so the fit is
-// kept and the summary warns; with the check off, no warning.
+// FitModel on the absurd log: the check fails for every start and every prior, so the best
+// search result with the prior as given is kept and the summary warns; with the check off, no
+// warning and the same hyper-parameters.
 TEST(FitModel, WarnsWhenTheCheckFails) {
   const Log log = SaturatingLog(/*spike_at_end=*/true, 603);
   FitOptions options;
@@ -131,7 +132,9 @@ TEST(FitModel, WarnsWhenTheCheckFails) {
   EXPECT_NE(fit.summary.warnings[0].find("held-out check failed"), std::string::npos);
   EXPECT_EQ(fit.summary.prior_tightenings, 1);
   EXPECT_NE(FitReport(fit.model, fit.summary).find("warning"), std::string::npos);
-  EXPECT_EQ(fit.summary.starts.size(), 1u);  // the tightened search runs from one start
+  // The result is the search with the prior as given (three starts); the tightened one,
+  // which failed too, was not kept.
+  EXPECT_EQ(fit.summary.starts.size(), 3u);
 
   options.check.enabled = false;
   const FittedModel unchecked = FitModel(ParseModelSpec("motor"), log.X, log.Y, Vector(), options);
@@ -139,6 +142,10 @@ TEST(FitModel, WarnsWhenTheCheckFails) {
   EXPECT_TRUE(unchecked.summary.warnings.empty());
   EXPECT_EQ(unchecked.summary.starts.size(), 3u);
   EXPECT_EQ(unchecked.summary.prior_tightenings, 0);
+  EXPECT_EQ(unchecked.model.hyperparameters().log_noise_std,
+            fit.model.hyperparameters().log_noise_std);
+  EXPECT_EQ(unchecked.model.hyperparameters().log_block_scale,
+            fit.model.hyperparameters().log_block_scale);
 }
 
 }  // namespace

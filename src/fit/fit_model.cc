@@ -154,6 +154,9 @@ bool SearchAndCheck(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters*
   const FitOptions& options = fit->options();
   const Hyperparameters centre = *h;
   MaximumLikelihoodOptions o = fit->EvidenceOptions();
+  // The search with the prior as given, kept for when no tighter prior passes either.
+  MaximumLikelihoodSummary first;
+  FitCheck first_check;
   for (int round = 0;; ++round) {
     Hyperparameters trial = centre;
     const MaximumLikelihoodSummary s = search(o, &trial);
@@ -166,54 +169,57 @@ bool SearchAndCheck(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters*
       return false;
     }
     if (!fit->Report(s.BriefReport())) return false;
-    int chosen = s.best_start;
+    if (!options.check.enabled) {
+      *h = s.starts[static_cast<size_t>(s.best_start)].hyperparameters;
+      fit->TakeEvidenceSummary(s, s.best_start);
+      return true;
+    }
     FitCheck best_check;
-    bool passed = true;
-    if (options.check.enabled) {
-      passed = false;
-      const std::vector<int> order = s.StartsByObjective();
-      for (size_t i = 0; i < order.size(); ++i) {
-        const int k = order[i];
-        const FitCheck c = CheckOnHeldOutBlocks(*fit->model(),
-                                                s.starts[static_cast<size_t>(k)].hyperparameters,
-                                                X, Y, options.check);
-        if (i == 0) best_check = c;
-        if (!fit->Report(Format("start %d: %s", k + 1, c.message.c_str()))) return false;
-        if (!c.ran || c.passed) {
-          chosen = k;
-          passed = true;
-          fit->summary().check = c;
-          if (k != s.best_start) {
-            fit->summary().notes.push_back(
-                Format("start %d (the lowest objective) failed the held-out check (%s); start %d "
-                       "passed and was taken",
-                       s.best_start + 1, best_check.message.c_str(), k + 1));
-          }
-          break;
+    const std::vector<int> order = s.StartsByObjective();
+    for (size_t i = 0; i < order.size(); ++i) {
+      const int k = order[i];
+      const FitCheck c = CheckOnHeldOutBlocks(
+          *fit->model(), s.starts[static_cast<size_t>(k)].hyperparameters, X, Y, options.check);
+      if (i == 0) best_check = c;
+      if (!fit->Report(Format("start %d: %s", k + 1, c.message.c_str()))) return false;
+      if (!c.ran || c.passed) {
+        *h = s.starts[static_cast<size_t>(k)].hyperparameters;
+        fit->summary().check = c;
+        fit->summary().prior_tightenings = round;
+        fit->TakeEvidenceSummary(s, k);
+        if (k != s.best_start) {
+          fit->summary().notes.push_back(
+              Format("start %d (the lowest objective) failed the held-out check (%s); start %d "
+                     "passed and was taken",
+                     s.best_start + 1, best_check.message.c_str(), k + 1));
         }
+        if (round > 0) {
+          fit->summary().notes.push_back(Format(
+              "no start passed the held-out check with the prior as given (%s); with its "
+              "widths divided by %g the check passed",
+              first_check.message.c_str(), std::pow(options.prior_tightening_factor, round)));
+        }
+        return true;
       }
     }
-    const bool last = round >= options.max_prior_tightenings ||
-                      o.prior.family == HyperpriorFamily::kNone;
-    if (passed || last) {
-      if (!passed) {
-        fit->summary().check = best_check;
-        fit->summary().warnings.push_back(
-            best_check.message +
-            (o.prior.family == HyperpriorFamily::kNone
-                 ? "; no start passed (plain type-II maximum likelihood: no prior to tighten)"
-                 : Format("; no start passed, also with the prior's widths divided by %g",
-                          std::pow(options.prior_tightening_factor, round))) +
-            ". Predictions away from the training path may be far off.");
-      }
-      *h = s.starts[static_cast<size_t>(chosen)].hyperparameters;
+    if (round == 0) {
+      first = s;
+      first_check = best_check;
+    }
+    if (round >= options.max_prior_tightenings || o.prior.family == HyperpriorFamily::kNone) {
+      // Nothing passed: the best objective of the search with the prior as given, and a
+      // warning. A tighter prior is kept only when it passes.
+      *h = first.starts[static_cast<size_t>(first.best_start)].hyperparameters;
+      fit->summary().check = first_check;
       fit->summary().prior_tightenings = round;
-      fit->TakeEvidenceSummary(s, chosen);
-      if (round > 0) {
-        fit->summary().notes.push_back(
-            Format("the prior's widths were divided by %g after failed held-out checks",
-                   std::pow(options.prior_tightening_factor, round)));
-      }
+      fit->TakeEvidenceSummary(first, first.best_start);
+      fit->summary().warnings.push_back(
+          first_check.message +
+          (o.prior.family == HyperpriorFamily::kNone
+               ? "; no start passed (plain type-II maximum likelihood: no prior to tighten)"
+               : Format("; no start passed, nor with the prior's widths divided by up to %g",
+                        std::pow(options.prior_tightening_factor, round))) +
+          ". Predictions away from the training path may be far off.");
       return true;
     }
     if (!fit->Report(Format("no start passed the held-out check; searching again from the "

@@ -87,10 +87,12 @@ struct FitOptions {
   /// (fit/fit_check.h). kEvidence: the runs of the search are checked best objective first and
   /// the first that passes is taken; when none passes and the prior is active, the search is
   /// repeated from the data-derived start alone with the prior's widths divided by
-  /// prior_tightening_factor, up to max_prior_tightenings times; when still none passes, the
-  /// best objective is kept and FitSummary::warnings says so. Other methods: checked, warned.
+  /// prior_tightening_factor, up to max_prior_tightenings times, and the first that passes is
+  /// taken; when none passes, the best objective of the search with the prior as given is kept
+  /// and FitSummary::warnings says so (a tighter prior is kept only when it passes). Other
+  /// methods: checked, warned.
   FitCheckOptions check;
-  int max_prior_tightenings = 2;
+  int max_prior_tightenings = 4;
   double prior_tightening_factor = 2.0;
   /// kEvidence on feature-map models with OutputScaling::kPerJointRms: profile the noise
   /// level and the output scales by evidence (a cheap one-dimensional search per output)
@@ -177,7 +179,8 @@ struct FitSummary {
   std::vector<MaximumLikelihoodStart> starts;
   int best_start = -1;
   int chosen_start = -1;
-  /// Evidence search: how many times the prior was tightened after failed checks.
+  /// Evidence search: how many times the prior was tightened after failed checks (the result
+  /// comes from the last search when its check passed, else from the first).
   int prior_tightenings = 0;
   /// The held-out check of the chosen hyper-parameters (check.ran false when not run).
   FitCheck check;
