@@ -113,6 +113,7 @@ struct Flags {
   int ml_iterations = 60;
   double fit_seconds = 120.0;
   bool cv = true;
+  bool plain_ml = false;
   std::vector<std::string> models;  // subset of the models to run; empty = all
   bool quick = false;
   bool check = false;
@@ -167,6 +168,9 @@ void AddFlags(CLI::App* app, Flags* f) {
   AddFlag(app, "--ml-iterations", &f->ml_iterations, "LBFGS iterations per ML-II fit");
   AddFlag(app, "--fit-seconds", &f->fit_seconds, "wall-clock limit per ML-II fit");
   app->add_flag_callback("--no-cv", [f]() { f->cv = false; }, "skip the cross-validated variants");
+  app->add_flag_callback("--plain-ml", [f]() { f->plain_ml = true; },
+                         "plain type-II maximum likelihood: no prior on the log hyper-parameters, "
+                         "one start, no held-out check (the library before its type-II MAP)");
   AddListFlag(app, "--models", &f->models,
               "run only these of pol, pol+fri, rbf, rbf+fri, rbfs, rbfs+fri, motor, motor+fri "
               "(default all)");
@@ -307,6 +311,10 @@ MaximumLikelihoodOptions MlOptions(const Flags& f) {
   o.gradient_tolerance = 1e-4;
   o.function_tolerance = 1e-7;
   o.max_seconds = f.fit_seconds;
+  if (f.plain_ml) {
+    o.prior.family = HyperpriorFamily::kNone;
+    o.num_starts = 1;
+  }
   return o;
 }
 
@@ -331,6 +339,7 @@ FitResult FitWeightSpace(const ModelKind& kind, const Problem& p, Tuning tuning,
   FitOptions options;
   options.model.form = Form::kWeightSpace;
   options.output_scaling = OutputScaling::kUnit;
+  options.check.enabled = !f.plain_ml;
   if (tuning == Tuning::kMaximumLikelihood) {
     options.method = HyperparameterMethod::kEvidence;
     options.evidence = MlOptions(f);

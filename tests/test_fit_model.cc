@@ -76,6 +76,10 @@ TEST(FitModel, UnitOutputScalesEqualTheStepsByHand) {
   const ModelSpec spec = Spec("pol");
   FitOptions options;
   options.output_scaling = OutputScaling::kUnit;
+  // pol without the friction the data hold fails the held-out check here (its Coriolis block
+  // absorbs the Coulomb step and swings off the path), which would refit with a tighter prior;
+  // this test compares the search itself with the steps by hand.
+  options.check.enabled = false;
   const FittedModel fit = FitModel(spec, d.X, d.Y, Vector(), options);
   ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
   EXPECT_EQ(fit.model.hyperparameters().log_output_scale, Vector::Zero(2));

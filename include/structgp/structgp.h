@@ -54,6 +54,7 @@
 // Hyper-parameters: type-II maximum likelihood (Ceres) and blocked cross-validation.
 #include "structgp/hyper/hyperparameter_layout.h"
 #include "structgp/hyper/evidence.h"
+#include "structgp/hyper/hyperprior.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/hyper/cross_validation.h"
 

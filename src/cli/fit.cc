@@ -32,6 +32,23 @@ class FitCommand : public Command {
         ->check(CLI::IsMember({"ml", "cv", "fixed"}))
         ->capture_default_str();
     cmd->add_option("--out", out_, "Model file to write (replaced atomically)")->required();
+    cmd->add_option("--prior", prior_,
+                    "--hyper ml: prior on the log hyper-parameters, centred on the defaults "
+                    "from the data: gaussian, student_t, or none (plain maximum likelihood)")
+        ->check(CLI::IsMember({"gaussian", "student_t", "none"}))
+        ->capture_default_str();
+    cmd->add_option("--starts", options_.evidence.num_starts,
+                    "--hyper ml: optimiser runs (the default start and perturbed copies); the "
+                    "best is kept")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    cmd->add_option("--prior-tightenings", options_.max_prior_tightenings,
+                    "--hyper ml: refits with the prior's widths halved when no start passes "
+                    "the held-out check")
+        ->check(CLI::Range(0, 20))
+        ->capture_default_str();
+    cmd->add_flag("--no-check", no_check_,
+                  "Skip the check of the hyper-parameters on held-out blocks of the data");
     cmd->add_option("--folds", options_.cv_folds, "Contiguous folds of --hyper cv")
         ->check(CLI::Range(2, 1000))
         ->capture_default_str();
@@ -64,6 +81,8 @@ class FitCommand : public Command {
     CheckOutputPath("--out", out_);  // before a long fit
     const ModelSpec spec = ParseSpecFlags(model_, effects_);
     options_.method = ParseHyperMethod(hyper_);
+    FromString(prior_, &options_.evidence.prior.family);  // checked by the flag
+    options_.check.enabled = !no_check_;
     const Progress progress("fit", quiet_);
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
@@ -81,7 +100,8 @@ class FitCommand : public Command {
   }
 
  private:
-  std::string data_, model_, effects_, hyper_ = "ml", out_;
+  std::string data_, model_, effects_, hyper_ = "ml", out_, prior_ = "gaussian";
+  bool no_check_ = false;
   FitOptions options_;
   RobotFlags robot_;
   int max_kernel_rows_ = kDefaultMaxKernelRows;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -78,15 +79,19 @@ class Fit {
   // A stop asked by MaximumLikelihoodOptions::iteration_callback itself.
   void MarkAborted() { aborted_ = true; }
 
-  // Records an evidence search; false (with the summary finished) when the model cannot be
-  // fitted after it.
-  bool TakeEvidenceSummary(const MaximumLikelihoodSummary& s) {
-    summary_.iterations = s.iterations;
+  // Records run `chosen` of an evidence search.
+  void TakeEvidenceSummary(const MaximumLikelihoodSummary& s, int chosen) {
+    const MaximumLikelihoodStart& run = s.starts.at(static_cast<size_t>(chosen));
+    summary_.iterations = run.iterations;
     summary_.num_evaluations = s.num_evaluations;
     summary_.initial_negative_log_evidence = s.initial_negative_log_likelihood;
-    summary_.final_negative_log_evidence = s.final_negative_log_likelihood;
-    summary_.at_bounds = s.at_bounds;
-    switch (s.termination) {
+    summary_.final_negative_log_evidence = run.negative_log_likelihood;
+    summary_.final_negative_log_prior = run.negative_log_prior;
+    summary_.at_bounds = run.at_bounds;
+    summary_.starts = s.starts;
+    summary_.best_start = s.best_start;
+    summary_.chosen_start = chosen;
+    switch (run.termination) {
       case MaximumLikelihoodTermination::kMaxIterations:
         search_end_ = FitTermination::kMaxIterations;
         break;
@@ -97,16 +102,30 @@ class Fit {
         search_end_ = FitTermination::kConverged;
         break;
     }
-    search_message_ = s.message;
-    summary_.method_description = Format("type-II maximum likelihood (%s, %d iterations)",
-                                         ToString(s.termination), s.iterations);
-    if (!s.at_bounds.empty()) {
+    search_message_ = chosen == s.best_start ? s.message : ToString(run.termination);
+    const bool map = s.final_negative_log_prior != 0.0 || run.negative_log_prior != 0.0;
+    std::string how = Format("type-II maximum likelihood%s (%s, %d iterations",
+                             map ? " with a prior on the log hyper-parameters (MAP)" : "",
+                             ToString(run.termination), run.iterations);
+    if (s.starts.size() > 1) {
+      how += Format("; start %d of %d", chosen + 1, static_cast<int>(s.starts.size()));
+    }
+    summary_.method_description = how + ")";
+    if (s.starts.size() > 1) {
+      std::string objectives;
+      for (const MaximumLikelihoodStart& r : s.starts) {
+        objectives += (objectives.empty() ? "" : ", ") +
+                      (r.usable ? Format("%.6g", r.objective) : std::string("failed"));
+      }
+      summary_.notes.push_back("objective -log p(Y) - log p(x) of each start: " + objectives +
+                               " nats");
+    }
+    if (!run.at_bounds.empty()) {
       std::string names;
-      for (const auto& n : s.at_bounds) names += (names.empty() ? "" : ", ") + n;
+      for (const auto& n : run.at_bounds) names += (names.empty() ? "" : ", ") + n;
       summary_.notes.push_back("at a bound of its search box (the optimum may lie beyond): " +
                                names);
     }
-    return true;
   }
 
   const FitOptions& options() const { return options_; }
@@ -125,6 +144,96 @@ class Fit {
   std::string search_message_;
   bool aborted_ = false;
 };
+
+using Search =
+    std::function<MaximumLikelihoodSummary(const MaximumLikelihoodOptions&, Hyperparameters*)>;
+
+// The evidence search from *h (the data-derived start, also the prior's centre), then the
+// held-out check of its runs, best objective first; when none passes, the search again from
+// *h with a tighter prior (FitOptions::max_prior_tightenings). *h receives the run taken.
+// False when the fit ends here (aborted: fit->aborted(); failed: *failure).
+bool SearchAndCheck(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
+                    std::string* failure, const Search& search) {
+  const FitOptions& options = fit->options();
+  const Hyperparameters centre = *h;
+  MaximumLikelihoodOptions o = fit->EvidenceOptions();
+  // The search with the prior as given, kept for when no tighter prior passes either.
+  MaximumLikelihoodSummary first;
+  FitCheck first_check;
+  for (int round = 0;; ++round) {
+    Hyperparameters trial = centre;
+    const MaximumLikelihoodSummary s = search(o, &trial);
+    if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
+      fit->MarkAborted();
+      return false;
+    }
+    if (!s.usable()) {
+      *failure = "type-II maximum likelihood: " + s.message;
+      return false;
+    }
+    if (!fit->Report(s.BriefReport())) return false;
+    if (!options.check.enabled) {
+      *h = s.starts[static_cast<size_t>(s.best_start)].hyperparameters;
+      fit->TakeEvidenceSummary(s, s.best_start);
+      return true;
+    }
+    FitCheck best_check;
+    const std::vector<int> order = s.StartsByObjective();
+    for (size_t i = 0; i < order.size(); ++i) {
+      const int k = order[i];
+      const FitCheck c = CheckOnHeldOutBlocks(
+          *fit->model(), s.starts[static_cast<size_t>(k)].hyperparameters, X, Y, options.check);
+      if (i == 0) best_check = c;
+      if (!fit->Report(Format("start %d: %s", k + 1, c.message.c_str()))) return false;
+      if (!c.ran || c.passed) {
+        *h = s.starts[static_cast<size_t>(k)].hyperparameters;
+        fit->summary().check = c;
+        fit->summary().prior_tightenings = round;
+        fit->TakeEvidenceSummary(s, k);
+        if (k != s.best_start) {
+          fit->summary().notes.push_back(
+              Format("start %d (the lowest objective) failed the held-out check (%s); start %d "
+                     "passed and was taken",
+                     s.best_start + 1, best_check.message.c_str(), k + 1));
+        }
+        if (round > 0) {
+          fit->summary().notes.push_back(Format(
+              "no start passed the held-out check with the prior as given (%s); with its "
+              "widths divided by %g the check passed",
+              first_check.message.c_str(), std::pow(options.prior_tightening_factor, round)));
+        }
+        return true;
+      }
+    }
+    if (round == 0) {
+      first = s;
+      first_check = best_check;
+    }
+    if (round >= options.max_prior_tightenings || o.prior.family == HyperpriorFamily::kNone) {
+      // Nothing passed: the best objective of the search with the prior as given, and a
+      // warning. A tighter prior is kept only when it passes.
+      *h = first.starts[static_cast<size_t>(first.best_start)].hyperparameters;
+      fit->summary().check = first_check;
+      fit->summary().prior_tightenings = round;
+      fit->TakeEvidenceSummary(first, first.best_start);
+      fit->summary().warnings.push_back(
+          first_check.message +
+          (o.prior.family == HyperpriorFamily::kNone
+               ? "; no start passed (plain type-II maximum likelihood: no prior to tighten)"
+               : Format("; no start passed, nor with the prior's widths divided by up to %g",
+                        std::pow(options.prior_tightening_factor, round))) +
+          ". Predictions away from the training path may be far off.");
+      return true;
+    }
+    if (!fit->Report(Format("no start passed the held-out check; searching again from the "
+                            "data-derived start with the prior's widths divided by %g",
+                            std::pow(options.prior_tightening_factor, round + 1)))) {
+      return false;
+    }
+    o.prior = o.prior.Tightened(options.prior_tightening_factor);
+    o.num_starts = 1;
+  }
+}
 
 // Feature-map models by evidence: noise and output scales profiled, then LBFGS on cached
 // Phi^T Phi. False when the fit ends here (summary finished by the caller's check).
@@ -156,18 +265,12 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
                    "LBFGS)")) {
     return false;
   }
-  const MaximumLikelihoodSummary s = FitHyperparameters(evidence, fit->EvidenceOptions(), h);
-  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
-    fit->MarkAborted();
-    return false;
-  }
-  if (!s.usable()) {
-    *failure = "type-II maximum likelihood: " + s.message;
-    return false;
-  }
   fit->summary().hyperparameter_rows = static_cast<int>(X.rows());
-  fit->TakeEvidenceSummary(s);
-  return fit->Report(s.BriefReport());
+  return SearchAndCheck(
+      X, Y, fit, h, failure,
+      [&evidence](const MaximumLikelihoodOptions& o, Hyperparameters* hyper) {
+        return FitHyperparameters(evidence, o, hyper);
+      });
 }
 
 bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, const ConstVectorRef& t,
@@ -247,24 +350,17 @@ bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameter
                           used, static_cast<int>(X.rows())))) {
     return false;
   }
-  const MaximumLikelihoodSummary s =
-      FitKernelHyperparameters(kernel, Xs, Ys, fit->EvidenceOptions(), h);
-  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
-    fit->MarkAborted();
-    return false;
-  }
-  if (!s.usable()) {
-    *failure = "type-II maximum likelihood: " + s.message;
-    return false;
-  }
   fit->summary().hyperparameter_rows = used;
-  fit->TakeEvidenceSummary(s);
   if (used < X.rows()) {
     fit->summary().notes.push_back(
         Format("kernel hyper-parameters fitted on %d evenly spaced rows of %d", used,
                static_cast<int>(X.rows())));
   }
-  return fit->Report(s.BriefReport());
+  return SearchAndCheck(
+      X, Y, fit, h, failure,
+      [&kernel, &Xs, &Ys](const MaximumLikelihoodOptions& o, Hyperparameters* hyper) {
+        return FitKernelHyperparameters(kernel, Xs, Ys, o, hyper);
+      });
 }
 
 // rbd and lag models by evidence: the per-joint statistics of the regressor over every row, then LBFGS
@@ -364,6 +460,15 @@ bool FitOptions::IsValid(std::string* error) const {
   if (method == HyperparameterMethod::kEvidence && !evidence.IsValid(&reason)) {
     return fail("FitOptions::evidence: " + reason);
   }
+  if (!check.IsValid(&reason)) return fail("FitOptions::check: " + reason);
+  if (max_prior_tightenings < 0) {
+    return fail("FitOptions::max_prior_tightenings: expected >= 0, got " +
+                std::to_string(max_prior_tightenings));
+  }
+  if (!(std::isfinite(prior_tightening_factor) && prior_tightening_factor > 1.0)) {
+    return fail(Format("FitOptions::prior_tightening_factor: expected a finite value > 1, got %g",
+                       prior_tightening_factor));
+  }
   if (max_evidence_rows < 0) {
     return fail("FitOptions::max_evidence_rows: expected >= 0 (0: every row), got " +
                 std::to_string(max_evidence_rows));
@@ -408,6 +513,7 @@ std::string FitSummary::BriefReport() const {
     text += Format(", %d candidates, held-out nMSE %.4g", cv_candidates, cv_mean_nmse);
   }
   text += Format(", %d of %d rows in the model, %.2f s", model_rows, rows, total_seconds);
+  if (!warnings.empty()) text += Format(" (%d warnings)", static_cast<int>(warnings.size()));
   if (!IsUsable()) text += ": " + message;
   return text;
 }
@@ -470,6 +576,14 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
       summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";
       fit.set_search_message("fixed hyper-parameters: nothing to search");
       break;
+  }
+  if (go_on && !fit.aborted() && options.method != HyperparameterMethod::kEvidence &&
+      options.check.enabled) {
+    summary.check = CheckOnHeldOutBlocks(*model, h, X, Y, options.check);
+    if (summary.check.ran && !summary.check.passed) {
+      summary.warnings.push_back(summary.check.message +
+                                 ". Predictions away from the training path may be far off.");
+    }
   }
   summary.hyperparameter_seconds = fit.seconds();
   if (fit.aborted()) return fit.Aborted();
@@ -589,6 +703,8 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   os << "hyper        " << summary.method_description
      << Format(", %.2f s", summary.total_seconds) << "\n";
   for (const auto& note : summary.notes) os << "             " << note << "\n";
+  if (summary.check.ran) os << "check        " << summary.check.message << "\n";
+  for (const auto& warning : summary.warnings) os << "warning      " << warning << "\n";
   std::vector<std::vector<std::string>> rows = {{"parameter", "value"}};
   const Hyperparameters& h = model.hyperparameters();
   if (model.feature_map()) {

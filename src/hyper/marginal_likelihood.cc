@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
@@ -20,6 +21,9 @@ namespace structgp {
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// A perturbed start moves each entry at most this fraction of the way to its bound, so that
+// it starts strictly inside the box.
+constexpr double kStartBoundFraction = 0.9;
 // Hyperparameters::Validate accepts log sigma_n in the open interval (-50, 50).
 constexpr double kNoiseLimit = 50.0;
 
@@ -153,47 +157,37 @@ class UserCallback final : public ceres::IterationCallback {
   double n_;
 };
 
-// LBFGS on the objective from *x; *x receives the best point evaluated. The caller has checked
-// that *x lies inside the bounds.
+// The outcome of one LBFGS run.
+struct Run {
+  MaximumLikelihoodTermination termination = MaximumLikelihoodTermination::kInitialPointFailed;
+  std::string message;
+  int iterations = 0;
+  Vector x;          // best point evaluated
+  double cost = 0.0;  // objective (divided by n) at x
+  Vector gradient;   // of the objective at x (divided by n)
+  bool aborted = false;
+};
+
+// LBFGS on the objective from x0, which lies inside the bounds. Returns kInitialPointFailed
+// (x = x0) when the objective cannot be evaluated at x0.
 template <typename Objective>
-MaximumLikelihoodSummary Minimize(const Objective& objective,
-                                  const MaximumLikelihoodOptions& options,
-                                  const std::vector<std::string>& names, Vector* x) {
-  const auto start_time = std::chrono::steady_clock::now();
-  MaximumLikelihoodSummary summary;
-  summary.parameter_names = names;
-  const double n = objective.num_observations();
-  summary.num_observations = n;
+Run RunLbfgs(const Objective& objective, const MaximumLikelihoodOptions& options,
+             const Vector& x0, double seconds_left) {
+  Run run;
+  run.x = x0;
   const int num_parameters = objective.num_parameters();
-  auto finish = [&]() {
-    summary.num_evaluations = objective.num_evaluations();
-    summary.num_failed_evaluations = objective.num_failed_evaluations();
-    summary.num_out_of_bounds_evaluations = objective.num_out_of_bounds_evaluations();
-    summary.elapsed_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
-    if (options.verbose) std::fprintf(stderr, "%s\n", summary.BriefReport().c_str());
-    return summary;
-  };
-
-  double cost = 0.0;
-  Vector gradient(num_parameters);
-  if (!objective.Evaluate(x->data(), &cost, gradient.data())) {
-    summary.termination = MaximumLikelihoodTermination::kInitialPointFailed;
-    summary.message = "the evidence could not be evaluated at the starting point";
-    summary.initial_negative_log_likelihood = kInfinity;
-    summary.final_negative_log_likelihood = kInfinity;
-    summary.final_gradient = Vector::Zero(num_parameters);
-    return finish();
+  run.gradient = Vector::Zero(num_parameters);
+  if (!objective.Evaluate(x0.data(), &run.cost, run.gradient.data())) {
+    run.cost = kInfinity;
+    run.message = "the evidence could not be evaluated at the starting point";
+    return run;
   }
-  summary.initial_negative_log_likelihood = cost * n;
   if (num_parameters == 0) {
-    summary.termination = MaximumLikelihoodTermination::kNoFreeParameters;
-    summary.message = "no hyper-parameter is free";
-    summary.final_negative_log_likelihood = cost * n;
-    summary.final_gradient = Vector();
-    return finish();
+    run.termination = MaximumLikelihoodTermination::kNoFreeParameters;
+    run.message = "no hyper-parameter is free";
+    return run;
   }
-
+  const double n = objective.num_observations();
   ceres::GradientProblemSolver::Options solver_options;
   solver_options.line_search_direction_type = ceres::LBFGS;
   solver_options.max_lbfgs_rank = options.lbfgs_rank;
@@ -201,7 +195,7 @@ MaximumLikelihoodSummary Minimize(const Objective& objective,
   // trial step of the line search has the right length in every direction.
   solver_options.use_approximate_eigenvalue_bfgs_scaling = true;
   solver_options.max_num_iterations = options.max_iterations;
-  solver_options.max_solver_time_in_seconds = options.max_seconds;
+  solver_options.max_solver_time_in_seconds = std::max(1e-3, seconds_left);
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;
@@ -213,44 +207,157 @@ MaximumLikelihoodSummary Minimize(const Objective& objective,
 
   auto* function = new CeresFunction<Objective>(&objective);
   ceres::GradientProblem problem(function);  // owns function
-  Vector solver_x = *x;
+  Vector solver_x = x0;
   ceres::GradientProblemSolver::Summary solver_summary;
   ceres::Solve(solver_options, problem, solver_x.data(), &solver_summary);
 
   switch (solver_summary.termination_type) {
     case ceres::CONVERGENCE:
-      summary.termination = MaximumLikelihoodTermination::kConverged;
+      run.termination = MaximumLikelihoodTermination::kConverged;
       break;
     case ceres::NO_CONVERGENCE:
-      summary.termination = MaximumLikelihoodTermination::kMaxIterations;
+      run.termination = MaximumLikelihoodTermination::kMaxIterations;
       break;
     case ceres::USER_SUCCESS:
     case ceres::USER_FAILURE:
-      summary.termination = MaximumLikelihoodTermination::kUserAbort;
+      run.termination = MaximumLikelihoodTermination::kUserAbort;
+      run.aborted = true;
       break;
     default:
-      summary.termination = MaximumLikelihoodTermination::kLineSearchFailed;
+      run.termination = MaximumLikelihoodTermination::kLineSearchFailed;
       break;
   }
-  summary.message = solver_summary.message;
-  summary.iterations = std::max(0, static_cast<int>(solver_summary.iterations.size()) - 1);
+  run.message = solver_summary.message;
+  run.iterations = std::max(0, static_cast<int>(solver_summary.iterations.size()) - 1);
 
   // The best point seen; re-evaluated with its gradient (evaluations are deterministic).
-  Vector best = function->has_best() ? function->best_x() : *x;
-  if (!objective.Evaluate(best.data(), &cost, gradient.data())) {
-    best = *x;
-    objective.Evaluate(best.data(), &cost, gradient.data());
+  Vector best = function->has_best() ? function->best_x() : x0;
+  if (!objective.Evaluate(best.data(), &run.cost, run.gradient.data())) {
+    best = x0;
+    objective.Evaluate(best.data(), &run.cost, run.gradient.data());
   }
-  *x = best;
-  summary.final_negative_log_likelihood = cost * n;
-  summary.final_gradient = gradient * n;
-  for (int i = 0; i < num_parameters; ++i) {
-    if (best[i] - objective.lower_bounds()[i] <= kAtBoundDistance ||
-        objective.upper_bounds()[i] - best[i] <= kAtBoundDistance) {
-      summary.at_bounds.push_back(names[static_cast<size_t>(i)]);
+  run.x = best;
+  return run;
+}
+
+// The k-th perturbed start: x0 moved by N(0, perturbation^2) per entry, each entry kept at
+// least a tenth of the way from its bounds.
+Vector PerturbedStart(const Vector& x0, const Vector& lower, const Vector& upper,
+                      double perturbation, std::mt19937_64* rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Vector x = x0;
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    const double step = perturbation * normal(*rng);
+    const double target = x0[i] + step;
+    const double lo = x0[i] - kStartBoundFraction * (x0[i] - lower[i]);
+    const double hi = x0[i] + kStartBoundFraction * (upper[i] - x0[i]);
+    x[i] = std::min(hi, std::max(lo, target));
+  }
+  return x;
+}
+
+// LBFGS from *x and from options.num_starts - 1 perturbed starts; *x receives the best point
+// of the winning run. The caller has checked that *x lies inside the bounds.
+template <typename Objective>
+MaximumLikelihoodSummary Minimize(const Objective& objective,
+                                  const MaximumLikelihoodOptions& options,
+                                  const std::vector<std::string>& names, Vector* x) {
+  const auto start_time = std::chrono::steady_clock::now();
+  const auto elapsed = [&]() {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  };
+  MaximumLikelihoodSummary summary;
+  summary.parameter_names = names;
+  const double n = objective.num_observations();
+  summary.num_observations = n;
+  const int num_parameters = objective.num_parameters();
+  const LogHyperprior& prior = objective.prior();
+  auto finish = [&]() {
+    summary.num_evaluations = objective.num_evaluations();
+    summary.num_failed_evaluations = objective.num_failed_evaluations();
+    summary.num_out_of_bounds_evaluations = objective.num_out_of_bounds_evaluations();
+    summary.elapsed_seconds = elapsed();
+    if (options.verbose) std::fprintf(stderr, "%s\n", summary.BriefReport().c_str());
+    return summary;
+  };
+
+  const Vector x0 = *x;
+  std::mt19937_64 rng(options.seed);
+  std::vector<Run> runs;
+  const int num_starts = num_parameters == 0 ? 1 : options.num_starts;
+  for (int k = 0; k < num_starts; ++k) {
+    const Vector start = k == 0 ? x0
+                                : PerturbedStart(x0, objective.lower_bounds(),
+                                                 objective.upper_bounds(),
+                                                 options.start_perturbation, &rng);
+    if (k > 0 && options.verbose) std::fprintf(stderr, "ML-II start %d of %d\n", k + 1, num_starts);
+    const int evaluations_before = objective.num_evaluations();
+    runs.push_back(RunLbfgs(objective, options, start, options.max_seconds - elapsed()));
+    const Run& run = runs.back();
+    MaximumLikelihoodStart record;
+    record.usable = run.termination != MaximumLikelihoodTermination::kInitialPointFailed;
+    record.termination = run.termination;
+    record.iterations = run.iterations;
+    record.num_evaluations = objective.num_evaluations() - evaluations_before;
+    record.initial_x = start;
+    record.final_x = run.x;
+    for (int i = 0; i < num_parameters; ++i) {
+      if (run.x[i] - objective.lower_bounds()[i] <= kAtBoundDistance ||
+          objective.upper_bounds()[i] - run.x[i] <= kAtBoundDistance) {
+        record.at_bounds.push_back(names[static_cast<size_t>(i)]);
+      }
     }
+    if (record.usable) {
+      record.objective = run.cost * n;
+      record.negative_log_prior = prior.NegativeLogDensity(run.x);
+      record.negative_log_likelihood = record.objective - record.negative_log_prior;
+    } else {
+      record.objective = record.negative_log_likelihood = record.negative_log_prior = kInfinity;
+    }
+    summary.starts.push_back(record);
+    if (k == 0) {
+      if (!record.usable) {
+        summary.termination = MaximumLikelihoodTermination::kInitialPointFailed;
+        summary.message = run.message;
+        summary.initial_negative_log_likelihood = kInfinity;
+        summary.final_negative_log_likelihood = kInfinity;
+        summary.final_negative_log_prior = kInfinity;
+        summary.final_gradient = Vector::Zero(num_parameters);
+        return finish();
+      }
+      // x0 is the prior's centre: its prior term is 0.
+      double cost0 = 0.0;
+      objective.Evaluate(x0.data(), &cost0, nullptr);
+      summary.initial_negative_log_likelihood = cost0 * n - prior.NegativeLogDensity(x0);
+    }
+    if (run.aborted || elapsed() >= options.max_seconds) break;
   }
+
+  int best = 0;
+  for (int k = 1; k < static_cast<int>(runs.size()); ++k) {
+    const auto& r = summary.starts[static_cast<size_t>(k)];
+    if (r.usable && r.objective < summary.starts[static_cast<size_t>(best)].objective) best = k;
+  }
+  summary.best_start = best;
+  const Run& winner = runs[static_cast<size_t>(best)];
+  const MaximumLikelihoodStart& record = summary.starts[static_cast<size_t>(best)];
+  bool aborted = false;
+  for (const Run& r : runs) aborted = aborted || r.aborted;
+  summary.termination = aborted ? MaximumLikelihoodTermination::kUserAbort : winner.termination;
+  summary.message = aborted ? "the iteration callback asked to stop" : winner.message;
+  summary.iterations = winner.iterations;
+  *x = winner.x;
+  summary.final_negative_log_likelihood = record.negative_log_likelihood;
+  summary.final_negative_log_prior = record.negative_log_prior;
+  summary.final_gradient = winner.gradient * n;
+  summary.at_bounds = record.at_bounds;
   return finish();
+}
+
+// The prior of an objective: centre x0, the width of each entry's group.
+LogHyperprior MakePrior(const HyperpriorOptions& options, const Vector& x0, const Vector& width) {
+  if (options.family == HyperpriorFamily::kNone) return LogHyperprior();
+  return LogHyperprior(options.family, x0, width, options.degrees_of_freedom);
 }
 
 }  // namespace
@@ -295,6 +402,26 @@ bool MaximumLikelihoodOptions::IsValid(std::string* error) const {
     }
     return false;
   }
+  if (num_starts < 1) {
+    if (error != nullptr) {
+      *error = "MaximumLikelihoodOptions::num_starts: expected >= 1, got " +
+               std::to_string(num_starts);
+    }
+    return false;
+  }
+  if (!(std::isfinite(start_perturbation) && start_perturbation >= 0.0)) {
+    if (error != nullptr) {
+      *error = "MaximumLikelihoodOptions::start_perturbation: expected a finite value >= 0 (log "
+               "units), got " +
+               std::to_string(start_perturbation);
+    }
+    return false;
+  }
+  std::string prior_error;
+  if (!prior.IsValid(&prior_error)) {
+    if (error != nullptr) *error = "MaximumLikelihoodOptions::prior: " + prior_error;
+    return false;
+  }
   return ToleranceValid("gradient_tolerance", gradient_tolerance, error) &&
          ToleranceValid("function_tolerance", function_tolerance, error) &&
          ToleranceValid("parameter_tolerance", parameter_tolerance, error) &&
@@ -325,6 +452,12 @@ std::string MaximumLikelihoodSummary::BriefReport() const {
      << num_evaluations << " evaluations, " << num_failed_evaluations << " failed, "
      << num_out_of_bounds_evaluations << " out of bounds), -log p(Y) "
      << initial_negative_log_likelihood << " -> " << final_negative_log_likelihood;
+  if (final_negative_log_prior != 0.0) os << ", -log p(prior) " << final_negative_log_prior;
+  if (starts.size() > 1) {
+    os << ", start " << best_start + 1 << " of " << starts.size() << " won (objective";
+    for (const MaximumLikelihoodStart& start : starts) os << " " << start.objective;
+    os << ")";
+  }
   if (final_gradient.size() > 0) {
     os << ", max|gradient| " << final_gradient.lpNorm<Eigen::Infinity>();
   }
@@ -334,6 +467,17 @@ std::string MaximumLikelihoodSummary::BriefReport() const {
   }
   os << ", " << elapsed_seconds << " s";
   return os.str();
+}
+
+std::vector<int> MaximumLikelihoodSummary::StartsByObjective() const {
+  std::vector<int> order;
+  for (int k = 0; k < static_cast<int>(starts.size()); ++k) {
+    if (starts[static_cast<size_t>(k)].usable) order.push_back(k);
+  }
+  std::stable_sort(order.begin(), order.end(), [this](int a, int b) {
+    return starts[static_cast<size_t>(a)].objective < starts[static_cast<size_t>(b)].objective;
+  });
+  return order;
 }
 
 // ---- weight space -----------------------------------------------------------------------------
@@ -354,6 +498,24 @@ EvidenceObjective::EvidenceObjective(const WeightSpaceEvidence& evidence,
     lower_[i] = bounds.lower;
     upper_[i] = bounds.upper;
   }
+  Vector width(layout_.size());
+  for (int i = 0; i < layout_.size(); ++i) {
+    switch (layout_.group(i)) {
+      case HyperparameterGroup::kShape:
+        width[i] = options.prior.shape_width;
+        break;
+      case HyperparameterGroup::kBlockScale:
+        width[i] = options.prior.block_scale_width;
+        break;
+      case HyperparameterGroup::kNoise:
+        width[i] = options.prior.noise_width;
+        break;
+      case HyperparameterGroup::kOutputScale:
+        width[i] = options.prior.output_scale_width;
+        break;
+    }
+  }
+  prior_ = MakePrior(options.prior, layout_.Flatten(start), width);
   num_observations_ = std::max(1.0, evidence.statistics().count) * num_outputs;
   work_ = base_;
   gradient_ = base_;
@@ -386,15 +548,17 @@ bool EvidenceObjective::Evaluate(const double* x, double* cost, double* gradient
     ++num_failed_;
     return false;
   }
+  Vector g;
   if (gradient != nullptr) {
-    const Vector g = layout_.Flatten(gradient_);
+    g = -layout_.Flatten(gradient_);
     if (!g.allFinite()) {
       ++num_failed_;
       return false;
     }
-    Eigen::Map<Vector>(gradient, layout_.size()) = -g / num_observations_;
   }
-  *cost = -lml / num_observations_;
+  const double penalty = prior_.NegativeLogDensity(xv, gradient != nullptr ? g.data() : nullptr);
+  if (gradient != nullptr) Eigen::Map<Vector>(gradient, layout_.size()) = g / num_observations_;
+  *cost = (-lml + penalty) / num_observations_;
   return true;
 }
 
@@ -410,6 +574,9 @@ MaximumLikelihoodSummary FitHyperparameters(const WeightSpaceEvidence& evidence,
   RequireStartInside("FitHyperparameters", x, objective.lower_bounds(), objective.upper_bounds(),
                      layout.names(), bounds_names);
   MaximumLikelihoodSummary summary = Minimize(objective, options, layout.names(), &x);
+  for (MaximumLikelihoodStart& start : summary.starts) {
+    start.hyperparameters = objective.ToHyperparameters(start.final_x);
+  }
   if (summary.usable()) *hyper = objective.ToHyperparameters(x);
   return summary;
 }
@@ -440,26 +607,31 @@ KernelEvidenceObjective::KernelEvidenceObjective(const Kernel& kernel, const Con
   RequireFinite("KernelEvidenceObjective Y", Y);
   const int num_outputs = static_cast<int>(Y.cols());
   ValidateHyperparameters(start, kernel, num_outputs);
-  std::vector<double> lower, upper;
-  auto add = [&](const std::string& name, const LogBounds& bounds) {
+  std::vector<double> lower, upper, width;
+  auto add = [&](const std::string& name, const LogBounds& bounds, double prior_width) {
     names_.push_back(name);
     lower.push_back(bounds.lower);
     upper.push_back(bounds.upper);
+    width.push_back(prior_width);
   };
   if (free_kernel_) {
     const std::vector<std::string> names = kernel.parameter_names();
     for (int i = 0; i < kernel.num_parameters(); ++i) {
-      add(names.at(static_cast<size_t>(i)), options.kernel_parameter_bounds);
+      add(names.at(static_cast<size_t>(i)), options.kernel_parameter_bounds,
+          options.prior.kernel_parameter_width);
     }
   }
-  if (free_noise_) add("log_noise_std", options.noise_bounds);
+  if (free_noise_) add("log_noise_std", options.noise_bounds, options.prior.noise_width);
   if (free_scales_) {
     for (int j = 0; j < num_outputs; ++j) {
-      add("log_output_scale_" + std::to_string(j + 1), options.output_scale_bounds);
+      add("log_output_scale_" + std::to_string(j + 1), options.output_scale_bounds,
+          options.prior.output_scale_width);
     }
   }
   lower_ = Eigen::Map<const Vector>(lower.data(), static_cast<Eigen::Index>(lower.size()));
   upper_ = Eigen::Map<const Vector>(upper.data(), static_cast<Eigen::Index>(upper.size()));
+  prior_ = MakePrior(options.prior, Flatten(start),
+                     Eigen::Map<const Vector>(width.data(), static_cast<Eigen::Index>(width.size())));
   num_observations_ = static_cast<double>(X.rows()) * num_outputs;
 }
 
@@ -528,9 +700,11 @@ bool KernelEvidenceObjective::Evaluate(const double* x, double* cost, double* gr
       ++num_failed_;
       return false;
     }
-    Eigen::Map<Vector>(gradient, num_parameters()) = -g / num_observations_;
+    g = -g;
+    prior_.NegativeLogDensity(xv, g.data());
+    Eigen::Map<Vector>(gradient, num_parameters()) = g / num_observations_;
   }
-  *cost = -lml / num_observations_;
+  *cost = (-lml + prior_.NegativeLogDensity(xv)) / num_observations_;
   return true;
 }
 
@@ -552,6 +726,9 @@ MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const Co
   RequireStartInside("FitKernelHyperparameters", x, objective.lower_bounds(),
                      objective.upper_bounds(), objective.names(), bounds_names);
   MaximumLikelihoodSummary summary = Minimize(objective, options, objective.names(), &x);
+  for (MaximumLikelihoodStart& start : summary.starts) {
+    start.hyperparameters = objective.ToHyperparameters(start.final_x);
+  }
   if (summary.usable()) *hyper = objective.ToHyperparameters(x);
   return summary;
 }

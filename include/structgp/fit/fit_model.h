@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "structgp/core/types.h"
+#include "structgp/fit/fit_check.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/model/model_spec.h"
 #include "structgp/model/robot_model.h"
@@ -77,9 +78,22 @@ struct FitOptions {
   HyperparameterMethod method = HyperparameterMethod::kEvidence;
   OutputScaling output_scaling = OutputScaling::kPerJointRms;
 
-  /// kEvidence: the LBFGS settings, which groups are free and their bounds. The defaults fit
-  /// shape, block scales and noise (output scales profiled first, then held).
+  /// kEvidence: the LBFGS settings, which groups are free and their bounds, the prior on the
+  /// log hyper-parameters (centred on the data-derived defaults FitModel starts from) and the
+  /// number of starts. The defaults fit shape, block scales and noise (output scales profiled
+  /// first, then held) by type-II MAP from 3 starts.
   MaximumLikelihoodOptions evidence;
+  /// The check of the chosen hyper-parameters on held-out contiguous blocks of the data
+  /// (fit/fit_check.h). kEvidence: the runs of the search are checked best objective first and
+  /// the first that passes is taken; when none passes and the prior is active, the search is
+  /// repeated from the data-derived start alone with the prior's widths divided by
+  /// prior_tightening_factor, up to max_prior_tightenings times, and the first that passes is
+  /// taken; when none passes, the best objective of the search with the prior as given is kept
+  /// and FitSummary::warnings says so (a tighter prior is kept only when it passes). Other
+  /// methods: checked, warned.
+  FitCheckOptions check;
+  int max_prior_tightenings = 4;
+  double prior_tightening_factor = 2.0;
   /// kEvidence on feature-map models with OutputScaling::kPerJointRms: profile the noise
   /// level and the output scales by evidence (a cheap one-dimensional search per output)
   /// before LBFGS.
@@ -144,15 +158,32 @@ struct FitSummary {
   std::string method_description;
   /// More lines: hyper-parameters at a bound, subsets of rows used, ...
   std::vector<std::string> notes;
+  /// Lines the user must read: the fitted model failed its held-out check.
+  std::vector<std::string> warnings;
 
-  /// Evidence search: LBFGS iterations and evaluations of the evidence (all kinds).
+  /// Evidence search: LBFGS iterations of the run taken, and evaluations of the evidence (all
+  /// kinds, every run).
   int iterations = 0;
   int num_evaluations = 0;
   /// Evidence search: -log p(Y) at the start and at the result, nats (NaN when not searched).
   double initial_negative_log_evidence = 0.0;
   double final_negative_log_evidence = 0.0;
+  /// Evidence search: -log p(x) of the prior at the result (0 without a prior).
+  double final_negative_log_prior = 0.0;
   /// Names of the hyper-parameters that ended within kAtBoundDistance of a bound.
   std::vector<std::string> at_bounds;
+  /// Evidence search: every LBFGS run of the search the result came from (objectives
+  /// -log p(Y) - log p(x) in nats, MaximumLikelihoodStart), the run with the lowest objective
+  /// and the run taken (they differ when the best failed the held-out check); -1 when not
+  /// searched.
+  std::vector<MaximumLikelihoodStart> starts;
+  int best_start = -1;
+  int chosen_start = -1;
+  /// Evidence search: how many times the prior was tightened after failed checks (the result
+  /// comes from the last search when its check passed, else from the first).
+  int prior_tightenings = 0;
+  /// The held-out check of the chosen hyper-parameters (check.ran false when not run).
+  FitCheck check;
   /// Cross-validation: held-out mean nMSE of the chosen candidate, candidates scored.
   double cv_mean_nmse = 0.0;
   int cv_candidates = 0;

@@ -12,15 +12,19 @@
 /// - FitKernelHyperparameters, function space: a Kernel's parameters (Hyperparameters::shape,
 ///   see core/hyperparameters.h), log noise std and log output scales, with KernelGP. Each evaluation costs O(m^3 + m^2 * num_parameters).
 ///
-/// The objective is f(x) = -log p(Y | x) / n over the flat vector x of the free
-/// hyper-parameters, n = m P the number of scalar observations: the division keeps f and its
-/// gradient of order one whatever the data size, so that one set of tolerances fits all.
+/// The objective is f(x) = (-log p(Y | x) - log p(x)) / n over the flat vector x of the free
+/// hyper-parameters, n = m P the number of scalar observations, p(x) the prior of
+/// MaximumLikelihoodOptions::prior (hyper/hyperprior.h; none: plain ML-II) centred on the
+/// starting values: the division keeps f and its gradient of order one whatever the data
+/// size, so that one set of tolerances fits all. LBFGS runs from the given start and from
+/// MaximumLikelihoodOptions::num_starts - 1 perturbed copies of it; the lowest f wins.
 /// All hyper-parameters are log values, and each has a box (LogBounds). The objective
 /// declines to evaluate (returns false) outside the box and where the evidence cannot be
 /// computed (a Cholesky factorisation fails, a value is not finite): the line search then
 /// backs off to a shorter step. Such evaluations are counted in the summary; they never
 /// produce a NaN. The result is the best point evaluated.
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -29,6 +33,7 @@
 #include "structgp/core/types.h"
 #include "structgp/hyper/evidence.h"
 #include "structgp/hyper/hyperparameter_layout.h"
+#include "structgp/hyper/hyperprior.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/kernel/kernel.h"
@@ -89,10 +94,23 @@ struct MaximumLikelihoodOptions {
   LogBounds output_scale_bounds{-12.0, 12.0};
   LogBounds kernel_parameter_bounds{-12.0, 12.0};
 
+  /// The prior on the log hyper-parameters, centred on the starting values (type-II MAP).
+  /// prior.family = HyperpriorFamily::kNone gives plain type-II maximum likelihood.
+  HyperpriorOptions prior;
+
+  /// Number of LBFGS runs (>= 1): from the given start, then from num_starts - 1 copies of it
+  /// with every free entry moved by an independent N(0, start_perturbation^2) step (log
+  /// units, clipped to 0.9 of the way to its bound), drawn from std::mt19937_64(seed). The
+  /// run with the lowest objective wins; every run is listed in the summary.
+  int num_starts = 3;
+  double start_perturbation = 1.0;
+  std::uint64_t seed = 20240601;
+
   /// Progress to stderr: one line per iteration and a final report.
   bool verbose = false;
-  /// Called after every LBFGS iteration with the iteration number and -log p(Y) (nats) at
-  /// the current point; returning false stops the search (kUserAbort). May be empty.
+  /// Called after every LBFGS iteration with the iteration number (counted from 0 in every
+  /// run) and the objective -log p(Y) - log p(x) (nats) at the current point; returning false
+  /// stops the search (kUserAbort), including the runs not yet started. May be empty.
   std::function<bool(int iteration, double negative_log_likelihood)> iteration_callback;
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
@@ -127,6 +145,27 @@ enum class MaximumLikelihoodTermination {
 /// "no_free_parameters", "user_abort".
 const char* ToString(MaximumLikelihoodTermination termination);
 
+/// One LBFGS run of a multi-start fit.
+struct MaximumLikelihoodStart {
+  /// False when the evidence could not be evaluated at this start (the run was skipped).
+  bool usable = false;
+  MaximumLikelihoodTermination termination = MaximumLikelihoodTermination::kInitialPointFailed;
+  int iterations = 0;
+  int num_evaluations = 0;
+  /// The starting point and the best point of the run (free entries, layout order), and the
+  /// hyper-parameters at the best point.
+  Vector initial_x;
+  Vector final_x;
+  Hyperparameters hyperparameters;
+  /// At final_x: -log p(Y | x), -log p(x) (0 without a prior) and their sum, nats; +infinity
+  /// when not usable.
+  double negative_log_likelihood = 0.0;
+  double negative_log_prior = 0.0;
+  double objective = 0.0;
+  /// Names of the free hyper-parameters within kAtBoundDistance of a bound at final_x.
+  std::vector<std::string> at_bounds;
+};
+
 /// What a fit did.
 struct MaximumLikelihoodSummary {
   MaximumLikelihoodTermination termination = MaximumLikelihoodTermination::kInitialPointFailed;
@@ -143,11 +182,24 @@ struct MaximumLikelihoodSummary {
   int num_failed_evaluations = 0;
   /// Trial points outside the bounds (rejected without evaluating the evidence).
   int num_out_of_bounds_evaluations = 0;
-  /// -log p(Y) at the start and at the result; +infinity when it could not be evaluated.
+  /// -log p(Y) at the given start and at the result; +infinity when it could not be
+  /// evaluated.
   double initial_negative_log_likelihood = 0.0;
   double final_negative_log_likelihood = 0.0;
-  /// d(-log p(Y)) / d x at the result, in the order of parameter_names (not divided by n).
+  /// -log p(x) of the prior (without its constant; 0 at the start, whose values are its
+  /// centre, and without a prior) at the result.
+  double final_negative_log_prior = 0.0;
+  /// d(-log p(Y) - log p(x)) / d x at the result (the objective's gradient times n), in the
+  /// order of parameter_names.
   Vector final_gradient;
+  /// Every LBFGS run, in the order they were started (0 = the given start), and the index of
+  /// the one that won (the lowest objective; -1 when none could be evaluated). iterations,
+  /// termination and message above are the winner's; num_evaluations and elapsed_seconds
+  /// count every run.
+  std::vector<MaximumLikelihoodStart> starts;
+  int best_start = -1;
+  /// The runs that could be evaluated, best (lowest objective) first.
+  std::vector<int> StartsByObjective() const;
   /// Number of scalar observations n = m P by which the objective is divided.
   double num_observations = 0.0;
   /// Names of the free hyper-parameters that ended within kAtBoundDistance of a bound.
@@ -157,7 +209,8 @@ struct MaximumLikelihoodSummary {
 
   /// True unless the start could not be evaluated.
   bool usable() const { return termination != MaximumLikelihoodTermination::kInitialPointFailed; }
-  /// One line: termination, iterations, evaluations, -log p before and after, time.
+  /// One line: termination, iterations, evaluations, -log p before and after, the prior and
+  /// the winning start, time.
   std::string BriefReport() const;
 };
 
@@ -168,7 +221,8 @@ struct MaximumLikelihoodSummary {
 /// model); evidence must outlive the objective.
 class EvidenceObjective {
  public:
-  /// Throws std::invalid_argument on invalid options or when start does not match the map.
+  /// The prior (options.prior) is centred on `start`. Throws std::invalid_argument on invalid
+  /// options or when start does not match the map.
   EvidenceObjective(const WeightSpaceEvidence& evidence, const MaximumLikelihoodOptions& options,
                     const Hyperparameters& start);
 
@@ -179,10 +233,12 @@ class EvidenceObjective {
   const Vector& upper_bounds() const { return upper_; }
   /// n = m P (at least P).
   double num_observations() const { return num_observations_; }
+  /// The prior over the free entries (inactive for HyperpriorFamily::kNone).
+  const LogHyperprior& prior() const { return prior_; }
 
-  /// f(x) into *cost and, when gradient is not null, df/dx (num_parameters()). Returns false,
-  /// writing nothing, when x is not finite or outside the bounds, or when the evidence cannot
-  /// be evaluated there.
+  /// f(x) = (-log p(Y | x) - log p(x)) / n into *cost and, when gradient is not null, df/dx
+  /// (num_parameters()). Returns false, writing nothing, when x is not finite or outside the
+  /// bounds, or when the evidence cannot be evaluated there.
   bool Evaluate(const double* x, double* cost, double* gradient) const;
 
   /// The hyper-parameters at x.
@@ -196,6 +252,7 @@ class EvidenceObjective {
   const WeightSpaceEvidence* evidence_;
   HyperparameterLayout layout_;
   Hyperparameters base_;
+  LogHyperprior prior_;
   Vector lower_, upper_;
   double num_observations_;
   mutable Hyperparameters work_;
@@ -205,10 +262,12 @@ class EvidenceObjective {
   mutable int num_out_of_bounds_ = 0;
 };
 
-/// Maximises log p(Y | hyper) over the free entries of *hyper (options.optimize_*), starting
-/// from *hyper, with Ceres' LBFGS. On return *hyper holds the best point evaluated (unchanged
-/// when the start could not be evaluated: see summary.termination). Cost: O(D^3) per
-/// evaluation, typically 20-100 evaluations.
+/// Maximises log p(Y | hyper) + log p(hyper) over the free entries of *hyper
+/// (options.optimize_*), the prior centred on *hyper, with Ceres' LBFGS from *hyper and from
+/// options.num_starts - 1 perturbed starts. On return *hyper holds the best point evaluated
+/// (unchanged when the start could not be evaluated: see summary.termination); the other
+/// runs' results are in summary.starts. Cost: O(D^3) per evaluation, typically 20-100
+/// evaluations per start.
 /// Throws std::invalid_argument when the options are invalid, *hyper does not match the map
 /// and outputs of the evidence, or a free starting value lies outside its bounds.
 MaximumLikelihoodSummary FitHyperparameters(const WeightSpaceEvidence& evidence,
@@ -234,6 +293,8 @@ class KernelEvidenceObjective {
   const Vector& lower_bounds() const { return lower_; }
   const Vector& upper_bounds() const { return upper_; }
   double num_observations() const { return num_observations_; }
+  /// The prior over the free entries, centred on start (inactive for HyperpriorFamily::kNone).
+  const LogHyperprior& prior() const { return prior_; }
 
   /// As EvidenceObjective::Evaluate, with an O(m^3 + m^2 num_parameters) evaluation.
   bool Evaluate(const double* x, double* cost, double* gradient) const;
@@ -253,6 +314,7 @@ class KernelEvidenceObjective {
   bool free_kernel_, free_noise_, free_scales_;
   Hyperparameters base_;
   std::vector<std::string> names_;
+  LogHyperprior prior_;
   Vector lower_, upper_;
   double num_observations_;
   mutable int num_evaluations_ = 0;
@@ -260,14 +322,15 @@ class KernelEvidenceObjective {
   mutable int num_out_of_bounds_ = 0;
 };
 
-/// Maximises log p(Y | hyper) of a KernelGP with the given kernel over the free entries of
-/// *hyper (optimize_kernel_parameters, optimize_noise, optimize_output_scales), starting from
-/// *hyper, whose shape holds the kernel's parameters (kernel/kernel_hyperparameters.h; the
+/// Maximises log p(Y | hyper) + log p(hyper) of a KernelGP with the given kernel over the free
+/// entries of *hyper (optimize_kernel_parameters, optimize_noise, optimize_output_scales), the
+/// prior centred on *hyper, from *hyper and options.num_starts - 1 perturbed starts. *hyper's
+/// shape holds the kernel's parameters (kernel/kernel_hyperparameters.h; the
 /// kernel's own parameters are not used). On return *hyper holds the best point evaluated
 /// (unchanged when the start could not be evaluated); the kernel is not modified. A model is
 /// fitted with the result by RobotModel::Fit(X, Y, *hyper) or
 /// KernelGP(*kernel.WithParameters(hyper->shape), ...). With a FeatureKernel the result is the weight-space optimum of
-/// FitHyperparameters (the same likelihood), at O(m^3) per evaluation instead of O(D^3).
+/// FitHyperparameters (the same likelihood and prior), at O(m^3) per evaluation instead of O(D^3).
 /// Throws std::invalid_argument on invalid options, sizes, values, or a free starting value
 /// outside its bounds.
 MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const ConstMatrixRef& X,

@@ -1,0 +1,151 @@
+#include "structgp/fit/fit_check.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "structgp/core/row_subset.h"
+#include "structgp/core/validate.h"
+#include "structgp/hyper/cross_validation.h"
+#include "structgp/internal/text.h"
+
+namespace structgp {
+
+using internal::Format;
+
+bool FitCheckOptions::IsValid(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (folds < 2) return fail("FitCheckOptions::folds: expected >= 2, got " + std::to_string(folds));
+  if (max_rows < 2 * folds) {
+    return fail(Format("FitCheckOptions::max_rows: expected >= 2 * folds = %d, got %d", 2 * folds,
+                       max_rows));
+  }
+  if (!(std::isfinite(range_margin) && range_margin >= 0.0)) {
+    return fail(Format("FitCheckOptions::range_margin: expected a finite value >= 0, got %g",
+                       range_margin));
+  }
+  if (!(std::isfinite(confidence_sigmas) && confidence_sigmas >= 0.0)) {
+    return fail(Format("FitCheckOptions::confidence_sigmas: expected a finite value >= 0, got %g",
+                       confidence_sigmas));
+  }
+  if (!(std::isfinite(max_fraction) && max_fraction >= 0.0 && max_fraction < 1.0)) {
+    return fail(Format("FitCheckOptions::max_fraction: expected a value in [0, 1), got %g",
+                       max_fraction));
+  }
+  return true;
+}
+
+FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hyper,
+                              const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                              const FitCheckOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  const int N = model.num_joints();
+  RequireSize("CheckOnHeldOutBlocks X", X.cols(), model.input_dim(), "columns");
+  RequireSize("CheckOnHeldOutBlocks Y", Y.cols(), N, "columns (joints)");
+  RequireSize("CheckOnHeldOutBlocks Y", Y.rows(), X.rows(), "rows (as in X)");
+  FitCheck check;
+  const std::vector<int> subset = EvenlySpacedRows(X.rows(), options.max_rows);
+  const int m = static_cast<int>(subset.size());
+  if (m < 2 * options.folds) {
+    check.message = Format("held-out check not run: %d rows, fewer than 2 per block", m);
+    return check;
+  }
+  const Matrix Xs = SelectRows(X, subset);
+  const Matrix Ys = SelectRows(Y, subset);
+  // The training torque range of every joint, over all rows given.
+  const Vector lo = Y.colwise().minCoeff().transpose();
+  const Vector hi = Y.colwise().maxCoeff().transpose();
+  const Vector span = (hi - lo).cwiseMax(1e-12);
+  const Vector noise_std =
+      (hyper.log_noise_std + hyper.log_output_scale.array()).exp().matrix();
+
+  std::vector<int> absurd(static_cast<size_t>(N), 0);
+  std::vector<int> confident(static_cast<size_t>(N), 0);
+  std::vector<double> excursion(static_cast<size_t>(N), 0.0);
+  int skipped = 0;
+  for (const auto& [begin, end] : ContiguousFolds(m, options.folds)) {
+    const int held = end - begin;
+    Matrix Xtrain(m - held, Xs.cols()), Ytrain(m - held, N);
+    Xtrain << Xs.topRows(begin), Xs.bottomRows(m - end);
+    Ytrain << Ys.topRows(begin), Ys.bottomRows(m - end);
+    RobotModel fold(model.spec(), N, model.options());
+    if (fold.Fit(Xtrain, Ytrain, hyper) != Status::kOk) {
+      ++skipped;
+      continue;
+    }
+    Matrix mean, latent_std;
+    fold.PredictRows(Xs.middleRows(begin, held), &mean, &latent_std);
+    for (int i = 0; i < held; ++i) {
+      for (int j = 0; j < N; ++j) {
+        const double mu = mean(i, j);
+        const double margin = options.range_margin * span[j];
+        const double outside =
+            std::max({0.0, mu - (hi[j] + margin), (lo[j] - margin) - mu});
+        if (!std::isfinite(mu)) {
+          ++absurd[static_cast<size_t>(j)];
+          ++confident[static_cast<size_t>(j)];
+          continue;
+        }
+        const double std = std::hypot(latent_std(i, j), noise_std[j]);
+        if (outside > 0.0) {
+          const bool sure = outside > options.confidence_sigmas * std;
+          if (sure) ++confident[static_cast<size_t>(j)];
+          if (sure || !options.count_only_confident) ++absurd[static_cast<size_t>(j)];
+        }
+        const double beyond = std::max({0.0, mu - hi[j], lo[j] - mu}) / span[j];
+        excursion[static_cast<size_t>(j)] = std::max(excursion[static_cast<size_t>(j)], beyond);
+      }
+    }
+    check.rows += held;
+  }
+  if (check.rows == 0) {
+    check.message = "held-out check not run: no fold could be fitted";
+    return check;
+  }
+  check.ran = true;
+  for (int j = 0; j < N; ++j) {
+    const double fraction = static_cast<double>(absurd[static_cast<size_t>(j)]) / check.rows;
+    if (fraction > check.worst_fraction) {
+      check.worst_joint = j + 1;
+      check.worst_fraction = fraction;
+      check.worst_confident_fraction =
+          static_cast<double>(confident[static_cast<size_t>(j)]) / check.rows;
+    }
+  }
+  double largest = 0.0;
+  int largest_joint = 1;
+  for (int j = 0; j < N; ++j) {
+    if (excursion[static_cast<size_t>(j)] > largest) {
+      largest = excursion[static_cast<size_t>(j)];
+      largest_joint = j + 1;
+    }
+  }
+  check.worst_excursion =
+      check.worst_joint > 0 ? excursion[static_cast<size_t>(check.worst_joint - 1)] : largest;
+  check.passed = check.worst_fraction <= options.max_fraction;
+  const std::string folds_text =
+      Format("%d contiguous blocks of %d evenly spaced rows%s", options.folds, m,
+             skipped > 0 ? Format(", %d not fitted", skipped).c_str() : "");
+  if (check.passed) {
+    check.message = Format(
+        "held-out check passed (%s): largest excursion %.3g spans of the training torque range "
+        "(joint %d)",
+        folds_text.c_str(), largest, largest_joint);
+  } else {
+    check.message = Format(
+        "held-out check failed (%s): %.1f%% of joint %d's held-out predictions lie more than "
+        "%.3g spans outside its training torque range (up to %.3g spans; %.1f%% by more than "
+        "%.3g predictive std)",
+        folds_text.c_str(), 100.0 * check.worst_fraction, check.worst_joint,
+        options.range_margin, check.worst_excursion, 100.0 * check.worst_confident_fraction,
+        options.confidence_sigmas);
+  }
+  return check;
+}
+
+}  // namespace structgp
