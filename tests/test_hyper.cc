@@ -590,7 +590,9 @@ TEST(SegmentFolds, HoldOutWholeTrajectoriesWhenThereAreEnough) {
     EXPECT_EQ(folds.back().second, 200);
     for (size_t f = 0; f < folds.size(); ++f) {
       EXPECT_LT(folds[f].first, folds[f].second) << "k " << k << " fold " << f;
-      if (f > 0) EXPECT_EQ(folds[f].first, folds[f - 1].second);
+      if (f > 0) {
+        EXPECT_EQ(folds[f].first, folds[f - 1].second);
+      }
       // Every boundary is the start of a trajectory.
       EXPECT_NE(std::find(starts.begin(), starts.end(), folds[f].first), starts.end())
           << "k " << k << " fold " << f << " begins inside a trajectory at " << folds[f].first;

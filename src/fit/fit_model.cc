@@ -379,19 +379,12 @@ bool RegressorByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparame
                    "LBFGS)")) {
     return false;
   }
-  const MaximumLikelihoodSummary s =
-      FitRegressorHyperparameters(map, stats, fit->EvidenceOptions(), h);
-  if (s.termination == MaximumLikelihoodTermination::kUserAbort || fit->aborted()) {
-    fit->MarkAborted();
-    return false;
-  }
-  if (!s.usable()) {
-    *failure = "type-II maximum likelihood: " + s.message;
-    return false;
-  }
   fit->summary().hyperparameter_rows = static_cast<int>(X.rows());
-  fit->TakeEvidenceSummary(s);
-  return fit->Report(s.BriefReport());
+  return SearchAndCheck(
+      X, Y, fit, h, failure,
+      [&map, &stats](const MaximumLikelihoodOptions& o, Hyperparameters* hyper) {
+        return FitRegressorHyperparameters(map, stats, o, hyper);
+      });
 }
 
 void CheckData(const RobotModel& model, const ConstMatrixRef& states, const ConstMatrixRef& torques,

@@ -756,23 +756,29 @@ RegressorEvidenceObjective::RegressorEvidenceObjective(const RegressorMap& map,
   }
   start.Validate(0, static_cast<Eigen::Index>(blocks_.size()), N,
                  "RegressorEvidenceObjective start");
-  std::vector<double> lower, upper;
-  auto add = [&](const std::string& name, const LogBounds& bounds) {
+  std::vector<double> lower, upper, width;
+  auto add = [&](const std::string& name, const LogBounds& bounds, double prior_width) {
     names_.push_back(name);
     lower.push_back(bounds.lower);
     upper.push_back(bounds.upper);
+    width.push_back(prior_width);
   };
   if (free_blocks_) {
-    for (const FeatureBlock& b : blocks_) add("log_block_scale_" + b.name, options.block_scale_bounds);
+    for (const FeatureBlock& b : blocks_) {
+      add("log_block_scale_" + b.name, options.block_scale_bounds, options.prior.block_scale_width);
+    }
   }
   if (free_noise_) {
     for (int j = 0; j < N; ++j) {
-      add("log_output_scale_" + std::to_string(j + 1), options.output_scale_bounds);
+      add("log_output_scale_" + std::to_string(j + 1), options.output_scale_bounds,
+          options.prior.noise_width);
     }
   }
   lower_ = Eigen::Map<const Vector>(lower.data(), static_cast<Eigen::Index>(lower.size()));
   upper_ = Eigen::Map<const Vector>(upper.data(), static_cast<Eigen::Index>(upper.size()));
   num_observations_ = std::max(1.0, statistics.count) * N;
+  prior_ = MakePrior(options.prior, Flatten(start),
+                     Eigen::Map<const Vector>(width.data(), static_cast<Eigen::Index>(width.size())));
 }
 
 Vector RegressorEvidenceObjective::Flatten(const Hyperparameters& hyper) const {
@@ -835,9 +841,11 @@ bool RegressorEvidenceObjective::Evaluate(const double* x, double* cost, double*
       ++num_failed_;
       return false;
     }
-    Eigen::Map<Vector>(gradient, num_parameters()) = -d / num_observations_;
+    d = -d;
+    prior_.NegativeLogDensity(xv, d.data());
+    Eigen::Map<Vector>(gradient, num_parameters()) = d / num_observations_;
   }
-  *cost = -lml / num_observations_;
+  *cost = (-lml + prior_.NegativeLogDensity(xv)) / num_observations_;
   return true;
 }
 
@@ -856,6 +864,9 @@ MaximumLikelihoodSummary FitRegressorHyperparameters(const RegressorMap& map,
   RequireStartInside("FitRegressorHyperparameters", x, objective.lower_bounds(),
                      objective.upper_bounds(), objective.names(), bounds_names);
   MaximumLikelihoodSummary summary = Minimize(objective, options, objective.names(), &x);
+  for (MaximumLikelihoodStart& start : summary.starts) {
+    start.hyperparameters = objective.ToHyperparameters(start.final_x);
+  }
   if (summary.usable()) *hyper = objective.ToHyperparameters(x);
   return summary;
 }

@@ -338,7 +338,8 @@ MaximumLikelihoodSummary FitKernelHyperparameters(const Kernel& kernel, const Co
                                                   const MaximumLikelihoodOptions& options,
                                                   Hyperparameters* hyper);
 
-/// The objective of FitRegressorHyperparameters: f(x) = -log p(Y | x) / (m N) of a RegressorGP
+/// The objective of FitRegressorHyperparameters: f(x) = (-log p(Y | x) - log p(x)) / (m N) of a
+/// RegressorGP
 /// (model/regressor_gp.h) on fixed statistics, O(N P^2 + P^3) per evaluation. Hyper-parameters
 /// of a regressor: shape empty, one log block scale per block of the map (prior variance of
 /// parameter k of block b: (prior_std_k exp(log_block_scale_b))^2), and the noise of output j,
@@ -360,6 +361,9 @@ class RegressorEvidenceObjective {
   const Vector& lower_bounds() const { return lower_; }
   const Vector& upper_bounds() const { return upper_; }
   double num_observations() const { return num_observations_; }
+  /// The prior on the free entries (options.prior: block_scale_width for the block scales,
+  /// noise_width for the noise levels), centred on the start.
+  const LogHyperprior& prior() const { return prior_; }
   bool Evaluate(const double* x, double* cost, double* gradient) const;
   Vector Flatten(const Hyperparameters& hyper) const;
   Hyperparameters ToHyperparameters(const ConstVectorRef& x) const;
@@ -368,6 +372,7 @@ class RegressorEvidenceObjective {
   int num_out_of_bounds_evaluations() const { return num_out_of_bounds_; }
 
  private:
+  LogHyperprior prior_;
   const RegressorMap* map_;
   const RegressorStatistics* statistics_;
   std::vector<FeatureBlock> blocks_;
