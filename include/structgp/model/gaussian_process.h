@@ -116,7 +116,9 @@ class GaussianProcess {
     KernelGP::Workspace function_space;      ///< function space
     Matrix regressor;                         ///< Psi(x), N x P (regressor)
     RegressorGP::Workspace regressor_gp;      ///< regressor
-    std::shared_ptr<RegressorMap::Scratch> regressor_scratch;  ///< regressor
+    /// regressor: the map's scratch (KDL solvers for rbd). A copy of a workspace shares it:
+    /// give each thread its own MakeWorkspace().
+    std::shared_ptr<RegressorMap::Scratch> regressor_scratch;
   };
   /// A workspace for the fitted form (allocates). After a refit or a Reserve of the function
   /// space, make a new one.
