@@ -11,8 +11,10 @@
 namespace structgp {
 namespace {
 
-// Largest number of bases of one effect (the stack buffer of an evaluation).
+// Largest number of bases of one effect, and of joints with friction (the stack buffers of an
+// evaluation).
 constexpr int kMaxEffectBases = 64;
+constexpr int kMaxFrictionJoints = 64;
 
 }  // namespace
 
@@ -30,6 +32,14 @@ SemiParametricRegressorMap::SemiParametricRegressorMap(std::shared_ptr<const Reg
   }
   if (options_.friction) {
     RequireInRange("SemiParametricOptions.friction_width", options_.friction_width, 0.0, 1e9);
+    if (N > kMaxFrictionJoints) {
+      throw std::invalid_argument("SemiParametricRegressorMap: friction for at most " +
+                                  std::to_string(kMaxFrictionJoints) + " joints, got " +
+                                  std::to_string(N));
+    }
+    // The paper's bases, one viscous, Coulomb and offset triple per joint (FrictionFeatureMap).
+    friction_ = std::make_shared<const FrictionFeatureMap>(
+        N, FrictionOptions{options_.friction_width, /*shared_offset=*/false});
   }
   const int P = base_->dim();
   names_ = base_->parameter_names();
@@ -38,12 +48,15 @@ SemiParametricRegressorMap::SemiParametricRegressorMap(std::shared_ptr<const Reg
   num_base_components_ = static_cast<int>(base_->component_names().size());
   const Vector base_mean = base_->prior_mean(), base_std = base_->prior_std();
   int column = P;
-  if (options_.friction) {
+  if (friction_) {
     const int block = static_cast<int>(blocks_.size());
+    const std::vector<std::string> friction_names = friction_->feature_names();
     for (int j = 0; j < N; ++j) {
+      const FrictionIndices ix = friction_->indices(j);
+      friction_indices_.push_back(ix);
       groups_.push_back(Group{j, -1, column, 3, block});
-      for (const char* name : {"viscous@", "coulomb@", "offset@"}) {
-        names_.push_back(name + std::to_string(j + 1));
+      for (int k : {ix.viscous, ix.coulomb, ix.offset}) {
+        names_.push_back(friction_names[static_cast<size_t>(k)]);
       }
       column += 3;
     }
@@ -100,13 +113,16 @@ void SemiParametricRegressorMap::EvaluateGroups(const ConstVectorRef& x, MatrixR
   const int N = num_joints_;
   const double t = options_.with_time ? x[3 * N] : 0.0;
   double buffer[kMaxEffectBases];
+  double friction[3 * kMaxFrictionJoints];
+  if (friction_) friction_->Evaluate(x.head(3 * N), Eigen::Map<Vector>(friction, 3 * N));
   for (const Group& g : groups_) {
     if (only_block >= 0 && g.block != only_block) continue;
     const int j = g.row;
     if (g.effect < 0) {
-      psi(j, g.begin) = x[N + j];
-      psi(j, g.begin + 1) = std::tanh(x[N + j] / options_.friction_width);
-      psi(j, g.begin + 2) = 1.0;
+      const FrictionIndices& ix = friction_indices_[static_cast<size_t>(j)];
+      psi(j, g.begin) = friction[ix.viscous];
+      psi(j, g.begin + 1) = friction[ix.coulomb];
+      psi(j, g.begin + 2) = friction[ix.offset];
     } else {
       options_.effects[static_cast<size_t>(g.effect)].effect->Evaluate(x[j], x[N + j],
                                                                         x[2 * N + j], t, buffer);

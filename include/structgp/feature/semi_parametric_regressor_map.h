@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "structgp/feature/effect.h"
+#include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/regressor_map.h"
 
 namespace structgp {
@@ -81,6 +82,8 @@ class SemiParametricRegressorMap final : public RegressorMap {
 
   std::shared_ptr<const RegressorMap> base_;
   SemiParametricOptions options_;
+  std::shared_ptr<const FrictionFeatureMap> friction_;  // null without friction
+  std::vector<FrictionIndices> friction_indices_;        // per joint, into friction_'s phi
   int num_joints_;
   int num_base_components_;
   int num_base_blocks_;
