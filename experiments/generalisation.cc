@@ -1,7 +1,7 @@
 // generalisation: slow -> fast on KDL-simulated arms, each model against the reference that
 // knows the answer (docs/generalisation.md).
 //
-//   generalisation [--robots=two_link,three_link,puma560] [--cases=none,friction,payload]
+//   generalisation [--robots=two_link,three_link,puma560,panda] [--cases=none,friction,payload]
 //                  [--models=reference,rbd+fri,rbd+fri/off30,lag+fri,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
 //                  [--out=FILE.csv]
@@ -84,10 +84,11 @@ sim::Robot MakeRobot(const std::string& name) {
   if (name == "two_link") return sim::TwoLinkArm();
   if (name == "three_link") return sim::ThreeLinkArm();
   if (name == "puma560") return sim::Puma560();
+  if (name == "panda") return sim::Panda();
   if (name == "random4") return sim::RandomRobot(4, 1);
   if (name == "random7") return sim::RandomRobot(7, 1);
   throw std::invalid_argument("--robots: unknown robot '" + name +
-                              "' (expected two_link, three_link, puma560, panda)");
+                              "' (expected two_link, three_link, puma560, panda, random4, random7)");
 }
 
 // The chain of a simulated robot: with its armature (the truth), or as its URDF has it.
@@ -447,7 +448,7 @@ int main(int argc, char** argv) {
   CLI::App app("Slow -> fast generalisation on KDL-simulated arms (docs/generalisation.md)",
                "generalisation");
   structgp::Flags f;
-  structgp::AddListFlag(&app, "--robots", &f.robots, "two_link, three_link, puma560, random4 and random7 (sim::RandomRobot(N, 1))");
+  structgp::AddListFlag(&app, "--robots", &f.robots, "two_link, three_link, puma560, panda, random4 and random7 (sim::RandomRobot(N, 1))");
   structgp::AddListFlag(&app, "--cases", &f.cases, "none, friction, payload");
   structgp::AddListFlag(&app, "--models", &f.models,
                         "reference, or a model (rbd+fri, pol+fri, rbf+fri, ...), /off30 for rbd "

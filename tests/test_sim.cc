@@ -45,7 +45,7 @@ std::string Trace(const Robot& robot, std::uint64_t seed) {
 
 // Every robot the tests run on: the fixed ones and random ones with N = 1..7.
 std::vector<Robot> AllRobots() {
-  std::vector<Robot> robots = {TwoLinkArm(), ThreeLinkArm(), Puma560()};
+  std::vector<Robot> robots = {TwoLinkArm(), ThreeLinkArm(), Puma560(), Panda()};
   for (std::uint64_t seed : kSeeds) {
     for (int n = 1; n <= 7; ++n) robots.push_back(RandomRobot(n, seed));
   }
@@ -75,38 +75,58 @@ struct LinkPose {
   Eigen::Matrix3d rotation;  // R_i: link frame i in base frame 0
 };
 
-// Standard DH forward kinematics: T_i = T_{i-1} Rz(q_i + theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i).
-// Entry 0 is the base frame, entry i link frame i.
-std::vector<LinkPose> ForwardKinematics(const std::vector<LinkParameters>& links,
-                                        const Eigen::VectorXd& q) {
-  std::vector<LinkPose> poses(links.size() + 1);
-  poses[0] = {Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()};
+struct Kinematics {
+  std::vector<LinkPose> poses;       // entry 0 the base frame, entry i link frame i
+  std::vector<Eigen::Vector3d> axes;    // joint i+1's axis, base frame 0
+  std::vector<Eigen::Vector3d> points;  // a point on it
+};
+
+// DH forward kinematics. Standard: T_i = T_{i-1} Rz(q_i + theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i),
+// joint i turns about z_{i-1}. Modified: T_i = T_{i-1} Rx(alpha_i) Tx(a_i) Rz(q_i + theta_i)
+// Tz(d_i), joint i turns about z_i.
+Kinematics ForwardKinematics(const Robot& robot, const Eigen::VectorXd& q) {
+  const std::vector<LinkParameters>& links = robot.links();
+  const bool modified = robot.convention() == DhConvention::kModified;
+  Kinematics k;
+  k.poses.resize(links.size() + 1);
+  k.poses[0] = {Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()};
   for (std::size_t i = 0; i < links.size(); ++i) {
     const LinkParameters& l = links[i];
     const Eigen::Matrix3d rz =
         Eigen::AngleAxisd(q(i) + l.theta_offset, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     const Eigen::Matrix3d rx =
         Eigen::AngleAxisd(l.alpha, Eigen::Vector3d::UnitX()).toRotationMatrix();
-    const LinkPose& previous = poses[i];
-    const Eigen::Matrix3d r = previous.rotation * rz;
-    poses[i + 1].origin = previous.origin + r * Eigen::Vector3d(l.a, 0.0, l.d);
-    poses[i + 1].rotation = r * rx;
+    const LinkPose& previous = k.poses[i];
+    LinkPose& pose = k.poses[i + 1];
+    if (modified) {
+      const Eigen::Matrix3d r = previous.rotation * rx;
+      pose.origin = previous.origin + previous.rotation * Eigen::Vector3d(l.a, 0.0, 0.0) +
+                    r * Eigen::Vector3d(0.0, 0.0, l.d);
+      pose.rotation = r * rz;
+      k.axes.push_back(pose.rotation.col(2));
+      k.points.push_back(pose.origin);
+    } else {
+      k.axes.push_back(previous.rotation.col(2));
+      k.points.push_back(previous.origin);
+      const Eigen::Matrix3d r = previous.rotation * rz;
+      pose.origin = previous.origin + r * Eigen::Vector3d(l.a, 0.0, l.d);
+      pose.rotation = r * rx;
+    }
   }
-  return poses;
+  return k;
 }
 
 // Geometric Jacobians (3 x N each) of the centre of mass of link i: linear velocity of the
 // centre of mass and angular velocity of the link, both in base frame 0.
-void ComJacobians(const std::vector<LinkParameters>& links, const std::vector<LinkPose>& poses,
-                  int i, Eigen::MatrixXd* jv, Eigen::MatrixXd* jw) {
+void ComJacobians(const std::vector<LinkParameters>& links, const Kinematics& k, int i,
+                  Eigen::MatrixXd* jv, Eigen::MatrixXd* jw) {
   const int n = static_cast<int>(links.size());
-  const Eigen::Vector3d com = poses[i + 1].origin + poses[i + 1].rotation * links[i].com;
+  const Eigen::Vector3d com = k.poses[i + 1].origin + k.poses[i + 1].rotation * links[i].com;
   jv->setZero(3, n);
   jw->setZero(3, n);
   for (int j = 0; j <= i; ++j) {
-    const Eigen::Vector3d axis = poses[j].rotation.col(2);  // joint j+1 turns about z_j
-    jv->col(j) = axis.cross(com - poses[j].origin);
-    jw->col(j) = axis;
+    jv->col(j) = k.axes[j].cross(com - k.points[j]);
+    jw->col(j) = k.axes[j];
   }
 }
 
@@ -114,13 +134,13 @@ void ComJacobians(const std::vector<LinkParameters>& links, const std::vector<Li
 // quadratic form of twice the kinetic energy.
 Eigen::MatrixXd ReferenceMassMatrix(const Robot& robot, const Eigen::VectorXd& q) {
   const auto& links = robot.links();
-  const auto poses = ForwardKinematics(links, q);
+  const Kinematics k = ForwardKinematics(robot, q);
   const int n = robot.num_joints();
   Eigen::MatrixXd mass = Eigen::MatrixXd::Zero(n, n);
   Eigen::MatrixXd jv, jw;
   for (int i = 0; i < n; ++i) {
-    ComJacobians(links, poses, i, &jv, &jw);
-    const Eigen::Matrix3d& r = poses[i + 1].rotation;
+    ComJacobians(links, k, i, &jv, &jw);
+    const Eigen::Matrix3d& r = k.poses[i + 1].rotation;
     mass += links[i].mass * jv.transpose() * jv +
             jw.transpose() * (r * links[i].inertia * r.transpose()) * jw;
     mass(i, i) += links[i].armature;
@@ -131,12 +151,12 @@ Eigen::MatrixXd ReferenceMassMatrix(const Robot& robot, const Eigen::VectorXd& q
 // G(q) = dV/dq with V = -sum_i m_i g . c_i: G = -sum_i m_i Jv_i^T g.
 Eigen::VectorXd ReferenceGravity(const Robot& robot, const Eigen::VectorXd& q) {
   const auto& links = robot.links();
-  const auto poses = ForwardKinematics(links, q);
+  const Kinematics k = ForwardKinematics(robot, q);
   const int n = robot.num_joints();
   Eigen::VectorXd gravity = Eigen::VectorXd::Zero(n);
   Eigen::MatrixXd jv, jw;
   for (int i = 0; i < n; ++i) {
-    ComJacobians(links, poses, i, &jv, &jw);
+    ComJacobians(links, k, i, &jv, &jw);
     gravity -= links[i].mass * jv.transpose() * robot.gravity_in_base();
   }
   return gravity;

@@ -1,6 +1,7 @@
 // The simulator's DH robots as URDF (sim::ToUrdf, data/urdf/) against the DH robots themselves:
 // the same inverse dynamics through kdl_parser's reading of the document.
 
+#include <cmath>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -8,7 +9,10 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/jntarray.hpp>
 
+#include "structgp/rigid_body/physical_consistency.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/robot.h"
 #include "structgp/sim/urdf.h"
@@ -19,13 +23,13 @@ namespace {
 
 const std::string kUrdfDir = std::string(STRUCTGP_SOURCE_DIR) + "/data/urdf";
 
-std::vector<Robot> BuiltIn() { return {TwoLinkArm(), ThreeLinkArm(), Puma560()}; }
+std::vector<Robot> BuiltIn() { return {TwoLinkArm(), ThreeLinkArm(), Puma560(), Panda()}; }
 
 // The DH robot with its armature removed (URDF has none).
 Robot WithoutArmature(const Robot& robot) {
   std::vector<LinkParameters> links = robot.links();
   for (LinkParameters& link : links) link.armature = 0.0;
-  return Robot(robot.name(), links, robot.base_rotation());
+  return Robot(robot.name(), links, robot.base_rotation(), robot.convention());
 }
 
 // Inverse dynamics of two models of one robot on random states. The URDF's frames are the DH
@@ -64,6 +68,47 @@ TEST(SimUrdfTest, UrdfAndDhGiveTheSameInverseDynamics) {
     // The armature put back: the DH robot as it is.
     ExpectSameDynamics(robot, ToRigidBodyChain(robot), 2);
   }
+}
+
+// The Panda's modified-DH kinematics against its published home pose: at q = 0 frame 7 sits
+// at (0.088, 0, 1.033) m with z pointing down (the flange, 0.107 m further along z_7, is at
+// (0.088, 0, 0.926) m), joint 2's axis is the base's y axis and joint 4's is -y.
+TEST(SimUrdfTest, PandaHomePose) {
+  const Robot panda = Panda();
+  ASSERT_EQ(panda.num_joints(), 7);
+  EXPECT_EQ(panda.convention(), DhConvention::kModified);
+  KDL::ChainFkSolverPos_recursive fk(panda.chain());
+  KDL::JntArray q(7);
+  KDL::Frame frame;
+  ASSERT_GE(fk.JntToCart(q, frame), 0);
+  EXPECT_NEAR(frame.p.x(), 0.088, 1e-12);
+  EXPECT_NEAR(frame.p.y(), 0.0, 1e-12);
+  EXPECT_NEAR(frame.p.z(), 1.033, 1e-12);
+  EXPECT_NEAR(frame.M.UnitZ().z(), -1.0, 1e-12);
+  const KDL::Vector flange = frame * KDL::Vector(0.0, 0.0, 0.107);
+  EXPECT_NEAR(flange.z(), 0.926, 1e-12);
+  ASSERT_GE(fk.JntToCart(q, frame, 2), 0);
+  EXPECT_NEAR(frame.M.UnitZ().y(), 1.0, 1e-12);
+  ASSERT_GE(fk.JntToCart(q, frame, 4), 0);
+  EXPECT_NEAR(frame.M.UnitZ().y(), -1.0, 1e-12);
+  EXPECT_NEAR(frame.p.x(), 0.0825, 1e-12);
+  EXPECT_NEAR(frame.p.z(), 0.649, 1e-12);
+  // Joint 1 turns about the vertical: no gravity torque on it, and its turn moves frame 7 on
+  // a circle of radius 0.088 m about the z axis.
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(7);
+  Eigen::VectorXd turned = zero;
+  turned(0) = 0.5;
+  for (int k = 0; k < 7; ++k) q(k) = turned(k);
+  ASSERT_GE(fk.JntToCart(q, frame), 0);
+  EXPECT_NEAR(frame.p.x(), 0.088 * std::cos(0.5), 1e-12);
+  EXPECT_NEAR(frame.p.y(), 0.088 * std::sin(0.5), 1e-12);
+  EXPECT_NEAR(panda.InverseDynamics(turned, zero, zero)(0), 0.0, 1e-12);
+  // A physically valid robot: positive masses, inertias that satisfy the triangle
+  // inequalities, M(q) positive definite.
+  const RigidBodyChain chain = ToRigidBodyChain(panda);
+  const PhysicalConsistency consistency = CheckPhysicalConsistency(chain, chain.parameters());
+  EXPECT_TRUE(consistency.ok);
+  EXPECT_EQ(consistency.mass_matrix_pd_fraction, 1.0);
 }
 
 TEST(SimUrdfTest, RandomRobotsToo) {

@@ -72,22 +72,36 @@ void ValidateRotation(const Eigen::Matrix3d& r) {
   }
 }
 
-KDL::Chain BuildChain(const std::vector<LinkParameters>& links) {
+KDL::Chain BuildChain(const std::vector<LinkParameters>& links, DhConvention convention) {
   KDL::Chain chain;
   for (std::size_t i = 0; i < links.size(); ++i) {
     const LinkParameters& link = links[i];
     const Eigen::Matrix3d& in = link.inertia;
-    // Standard DH: the segment's tip frame is link frame i and a KDL segment's inertia is
-    // expressed in its tip frame, which is where LinkParameters states it.
+    // In both conventions the segment's tip frame is link frame i, and a KDL segment's inertia
+    // is expressed in its tip frame, which is where LinkParameters states it.
     const KDL::RotationalInertia rotational(in(0, 0), in(1, 1), in(2, 2), in(0, 1), in(0, 2),
                                             in(1, 2));
     const KDL::RigidBodyInertia body(
         link.mass, KDL::Vector(link.com.x(), link.com.y(), link.com.z()), rotational);
-    chain.addSegment(KDL::Segment("link" + std::to_string(i + 1),
-                                  KDL::Joint("joint" + std::to_string(i + 1), KDL::Joint::RotZ,
-                                             /*scale=*/1.0, /*offset=*/0.0, link.armature),
-                                  KDL::Frame::DH(link.a, link.alpha, link.d, link.theta_offset),
-                                  body));
+    const std::string joint_name = "joint" + std::to_string(i + 1);
+    if (convention == DhConvention::kStandard) {
+      // The joint turns about z of frame i-1 before the rest of the link's transform.
+      chain.addSegment(KDL::Segment(
+          "link" + std::to_string(i + 1),
+          KDL::Joint(joint_name, KDL::Joint::RotZ, /*scale=*/1.0, /*offset=*/0.0, link.armature),
+          KDL::Frame::DH(link.a, link.alpha, link.d, link.theta_offset), body));
+    } else {
+      // Modified DH: frame i-1 -> i is F RotZ(q) RotZ(theta_offset) TransZ(d) with
+      // F = RotX(alpha) TransX(a). F RotZ(q) = R(q) F, R(q) the turn by q about F's z axis
+      // through F's origin, both in frame i-1: that is the joint, and the segment's tip frame
+      // at q = 0 is F RotZ(theta_offset) TransZ(d) (KDL::Frame::DH_Craig1989).
+      const KDL::Frame f(KDL::Rotation::RotX(link.alpha), KDL::Vector(link.a, 0.0, 0.0));
+      chain.addSegment(KDL::Segment(
+          "link" + std::to_string(i + 1),
+          KDL::Joint(joint_name, f.p, f.M.UnitZ(), KDL::Joint::RotAxis, /*scale=*/1.0,
+                     /*offset=*/0.0, link.armature),
+          KDL::Frame::DH_Craig1989(link.a, link.alpha, link.d, link.theta_offset), body));
+    }
   }
   return chain;
 }
@@ -115,6 +129,7 @@ Eigen::Matrix3d RodInertia(double mass, double length, double radius, int axis) 
 struct Robot::Model {
   std::string name;
   std::vector<LinkParameters> links;
+  DhConvention convention = DhConvention::kStandard;
   Eigen::Matrix3d base_rotation;
   Eigen::Vector3d gravity_in_base;
   KDL::Chain chain;  // KDL solvers built on it keep a reference: the Model never moves.
@@ -136,7 +151,7 @@ Robot Robot::FromRigidBodyChain(const RigidBodyChain& chain, std::string name) {
 }
 
 Robot::Robot(std::string name, std::vector<LinkParameters> links,
-             const Eigen::Matrix3d& base_rotation) {
+             const Eigen::Matrix3d& base_rotation, DhConvention convention) {
   if (links.empty()) {
     throw std::invalid_argument("Robot: expected at least 1 link, got 0");
   }
@@ -144,8 +159,9 @@ Robot::Robot(std::string name, std::vector<LinkParameters> links,
   ValidateRotation(base_rotation);
   auto model = std::make_shared<Model>();
   model->name = std::move(name);
-  model->chain = BuildChain(links);
+  model->chain = BuildChain(links, convention);
   model->links = std::move(links);
+  model->convention = convention;
   model->base_rotation = base_rotation;
   model->gravity_in_base = base_rotation.transpose() * Eigen::Vector3d(0.0, 0.0, -kStandardGravity);
   model_ = std::move(model);
@@ -155,6 +171,7 @@ const std::string& Robot::name() const { return model_->name; }
 int Robot::num_joints() const { return static_cast<int>(model_->chain.getNrOfJoints()); }
 const std::vector<LinkParameters>& Robot::links() const { return model_->links; }
 const Eigen::Matrix3d& Robot::base_rotation() const { return model_->base_rotation; }
+DhConvention Robot::convention() const { return model_->convention; }
 Eigen::Vector3d Robot::gravity_in_base() const { return model_->gravity_in_base; }
 const KDL::Chain& Robot::chain() const { return model_->chain; }
 
@@ -296,6 +313,42 @@ Robot Puma560() {
     links[i].armature = row.rotor_inertia * row.gear_ratio * row.gear_ratio;
   }
   return Robot("puma560", std::move(links));
+}
+
+Robot Panda() {
+  // Modified DH (Craig): a_{i-1}, alpha_{i-1}, d_i of Franka's published table.
+  constexpr double kA[7] = {0.0, 0.0, 0.0, 0.0825, -0.0825, 0.0, 0.088};
+  constexpr double kD[7] = {0.333, 0.0, 0.316, 0.0, 0.384, 0.0, 0.0};
+  constexpr double kAlpha[7] = {0.0, -0.5 * kPi, 0.5 * kPi, 0.5 * kPi, -0.5 * kPi, 0.5 * kPi,
+                                0.5 * kPi};
+  // Gaz et al. 2019: mass (kg) and centre of mass (m) in link frame i.
+  constexpr double kMass[7] = {4.970684, 0.646926, 3.228604, 3.587895, 1.225946, 1.666555, 0.735522};
+  constexpr double kCom[7][3] = {{3.875e-3, 2.081e-3, -0.1750},     {-3.141e-3, -2.872e-2, 3.495e-3},
+                                 {2.7518e-2, 3.9252e-2, -6.6502e-2}, {-5.317e-2, 1.04419e-1, 2.7454e-2},
+                                 {-1.1953e-2, 4.1065e-2, -3.8437e-2}, {6.0149e-2, -1.4117e-2, -1.0517e-2},
+                                 {1.0517e-2, -4.252e-3, 6.1597e-2}};
+  // Diaz Ledezma and Haddadin: Ixx, Ixy, Ixz, Iyy, Iyz, Izz about the centre of mass, kg m^2.
+  constexpr double kInertia[7][6] = {{0.7470, -0.0002, 0.0086, 0.7503, 0.0201, 0.0092},
+                                     {0.0085, -0.0040, 0.0103, 0.0281, 0.0008, 0.0265},
+                                     {0.0565, -0.0082, -0.0055, 0.0529, -0.0044, 0.0182},
+                                     {0.0677, 0.0277, 0.0039, 0.0324, -0.0016, 0.0776},
+                                     {0.0394, -0.0015, -0.0046, 0.0315, 0.0022, 0.0109},
+                                     {0.0025, 0.0015, -0.0001, 0.0106, 0.0001, 0.0118},
+                                     {0.0308, 0.0004, -0.0007, 0.0284, -0.0005, 0.0067}};
+  std::vector<LinkParameters> links(7);
+  for (int i = 0; i < 7; ++i) {
+    LinkParameters& link = links[i];
+    link.a = kA[i];
+    link.alpha = kAlpha[i];
+    link.d = kD[i];
+    link.mass = kMass[i];
+    link.com = Eigen::Vector3d(kCom[i][0], kCom[i][1], kCom[i][2]);
+    const double* in = kInertia[i];
+    link.inertia << in[0], in[1], in[2],  //
+        in[1], in[3], in[4],              //
+        in[2], in[4], in[5];
+  }
+  return Robot("panda", std::move(links), Eigen::Matrix3d::Identity(), DhConvention::kModified);
 }
 
 }  // namespace sim

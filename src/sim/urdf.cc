@@ -48,7 +48,9 @@ std::string ToUrdf(const Robot& robot) {
   os << "<?xml version=\"1.0\"?>\n"
      << "<!-- Robot '" << robot.name()
      << "' of structgp's simulator, written by structgp::sim::ToUrdf\n"
-        "     from its standard-DH parameters (include/structgp/sim/urdf.h says how).\n"
+        "     from its "
+     << (robot.convention() == DhConvention::kModified ? "modified" : "standard")
+     << "-DH parameters (include/structgp/sim/urdf.h says how).\n"
         "     URDF has no armature (reflected rotor inertia); the simulator's, kg m^2:";
   for (std::size_t i = 0; i < links.size(); ++i) {
     os << "\n       joint" << i + 1 << " " << Num(links[i].armature);
@@ -60,15 +62,21 @@ std::string ToUrdf(const Robot& robot) {
      << "    <child link=\"base\"/>\n    " << Origin(base) << "\n  </joint>\n";
   os << "  <link name=\"base\"/>\n";
   std::string parent = "base";
-  KDL::Frame before = KDL::Frame::Identity();  // B_{i-1}: DH frame i-1 in the parent's URDF frame
+  const bool modified = robot.convention() == DhConvention::kModified;
+  // Standard DH: B_{i-1}, DH frame i-1 in the parent's URDF frame. Modified DH: the URDF frame
+  // of link i is DH frame i (on joint i's axis), so B stays the identity.
+  KDL::Frame before = KDL::Frame::Identity();
   for (std::size_t i = 0; i < links.size(); ++i) {
     const LinkParameters& link = links[i];
     const std::string name = "link" + std::to_string(i + 1);
+    const KDL::Frame joint =
+        modified ? KDL::Frame::DH_Craig1989(link.a, link.alpha, link.d, link.theta_offset)
+                 : before * KDL::Frame(KDL::Rotation::RotZ(link.theta_offset));
     os << "  <joint name=\"joint" << i + 1 << "\" type=\"continuous\">\n"
        << "    <parent link=\"" << parent << "\"/>\n    <child link=\"" << name << "\"/>\n"
-       << "    " << Origin(before * KDL::Frame(KDL::Rotation::RotZ(link.theta_offset))) << "\n"
+       << "    " << Origin(joint) << "\n"
        << "    <axis xyz=\"0 0 1\"/>\n  </joint>\n";
-    const KDL::Frame after = AfterJoint(link);
+    const KDL::Frame after = modified ? KDL::Frame::Identity() : AfterJoint(link);
     const KDL::Frame inertial = after * KDL::Frame(KDL::Vector(link.com.x(), link.com.y(), link.com.z()));
     const Eigen::Matrix3d& in = link.inertia;
     os << "  <link name=\"" << name << "\">\n    <inertial>\n      " << Origin(inertial) << "\n"

@@ -12,9 +12,11 @@
 /// of motion is
 ///     tau = M(q) qdd + C(q, qd) qd + G(q),
 /// with gravity of kStandardGravity m/s^2 along -z of the world frame. The kinematics use
-/// the standard (distal) Denavit-Hartenberg convention: the frame of link i sits at the far
-/// end of link i and joint i turns about the z axis of frame i-1. A robot can also come from a
-/// URDF (Robot::FromUrdf): its kinematics are then the URDF's, with gravity as UrdfOptions says.
+/// Denavit-Hartenberg parameters in either convention (DhConvention): standard (distal: the
+/// frame of link i sits at the far end of link i and joint i turns about the z axis of frame
+/// i-1) or modified (proximal, Craig's: frame i sits on joint i's axis and joint i turns about
+/// its own z). A robot can also come from a URDF (Robot::FromUrdf): its kinematics are then the
+/// URDF's, with gravity as UrdfOptions says.
 
 #include <cstdint>
 #include <memory>
@@ -35,10 +37,22 @@ namespace sim {
 /// Magnitude of the gravitational acceleration, m/s^2. Gravity points along -z of the world.
 inline constexpr double kStandardGravity = 9.81;
 
+/// Which Denavit-Hartenberg convention a robot's LinkParameters follow.
+enum class DhConvention {
+  /// Standard (distal) DH: link i's frame is at its far end; frame i-1 -> i is
+  /// RotZ(q_i + theta_offset) TransZ(d) TransX(a) RotX(alpha).
+  kStandard,
+  /// Modified (proximal, J. J. Craig's) DH: link i's frame is on joint i's axis; frame i-1 -> i
+  /// is RotX(alpha) TransX(a) RotZ(q_i + theta_offset) TransZ(d), so row i's a and alpha are the
+  /// a_{i-1}, alpha_{i-1} of the textbooks' tables.
+  kModified,
+};
+
 /// Kinematic and inertial parameters of one link and the revolute joint that drives it.
 struct LinkParameters {
-  /// Standard DH parameters: link length a (m), twist alpha (rad), offset d (m) and the
-  /// constant joint-angle offset theta_offset (rad); the joint angle is q + theta_offset.
+  /// DH parameters in the robot's DhConvention: link length a (m), twist alpha (rad), offset d
+  /// (m) and the constant joint-angle offset theta_offset (rad); the joint angle is
+  /// q + theta_offset.
   double a = 0.0;
   double alpha = 0.0;
   double d = 0.0;
@@ -75,7 +89,8 @@ class Robot {
   /// The triangle inequalities of the principal moments are not enforced (published
   /// models such as the PUMA 560 list only the inertia terms that matter).
   Robot(std::string name, std::vector<LinkParameters> links,
-        const Eigen::Matrix3d& base_rotation = Eigen::Matrix3d::Identity());
+        const Eigen::Matrix3d& base_rotation = Eigen::Matrix3d::Identity(),
+        DhConvention convention = DhConvention::kStandard);
 
   /// A robot with the kinematics and inertias of a URDF's chain (RigidBodyChain::FromUrdfFile:
   /// the same options and errors); its gravity is options.gravity, in the root link's frame.
@@ -91,6 +106,8 @@ class Robot {
   /// The DH links (empty for a robot from a URDF).
   const std::vector<LinkParameters>& links() const;
   const Eigen::Matrix3d& base_rotation() const;
+  /// The convention of links() (kStandard for a robot from a URDF).
+  DhConvention convention() const;
   /// Gravitational acceleration expressed in the DH base frame 0, m/s^2.
   Eigen::Vector3d gravity_in_base() const;
   /// The KDL chain (one segment per joint, frames in base frame 0). For users who want
@@ -155,6 +172,18 @@ Robot ThreeLinkArm();
 /// squared) of that model; friction is separate (see Puma560Friction in friction.h).
 /// Name "puma560".
 Robot Puma560();
+
+/// A 7-joint arm with the kinematics of the Franka Emika Panda (Franka's published modified-DH
+/// table: d1 = 0.333, d3 = 0.316, a4 = 0.0825, a5 = -0.0825, d5 = 0.384, a7 = 0.088 m; twists
+/// 0, -pi/2, pi/2, pi/2, -pi/2, pi/2, pi/2; the flange's 0.107 m is not part of the chain),
+/// the link masses and centres of mass identified by C. Gaz, M. Cognetti, A. Oliva,
+/// P. Robuffo Giordano and A. De Luca, "Dynamic identification of the Franka Emika Panda robot
+/// with retrieval of feasible parameters using penalty-based optimization", IEEE RA-L 4(4),
+/// 2019, and rotational inertias about the centres of mass as reported by F. Diaz Ledezma and
+/// S. Haddadin (IEEE-RAS Humanoids 2017; positive definite, triangle inequalities hold: the
+/// inertia tensors as commonly transcribed from the former are not all positive definite). Joint 1 is vertical, gravity
+/// along -z of the base. No armature (the Panda's is not published with these). Name "panda".
+Robot Panda();
 
 }  // namespace sim
 }  // namespace structgp

@@ -13,6 +13,11 @@
 /// "base" (DH frame 0) carries the base rotation, and one with origin B_N from link N to "tool"
 /// gives DH frame N. Joints are "continuous", named joint1..jointN, links link1..linkN.
 ///
+/// A modified-DH link i moves frame i-1 to frame i by Rx(alpha) Tx(a) Rz(q_i + theta_i) Tz(d_i)
+/// and frame i lies on joint i's axis, so the URDF frame of link i is DH frame i itself: joint
+/// i's origin is Rx(alpha) Tx(a) Rz(theta_i) Tz(d_i), its axis z, and the inertial sits at the
+/// centre of mass with no rotation; "tool" is DH frame N.
+///
 /// URDF has no armature (reflected rotor inertia): the document lists each joint's in a comment
 /// only, and a chain read from it has armature 0; ToRigidBodyChain puts it back.
 
