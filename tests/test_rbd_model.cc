@@ -5,13 +5,16 @@
 // restore the model.
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <stdexcept>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "battery_options.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/feature/rigid_body_torque_feature_map.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/io/model_file.h"
 #include "structgp/model/robot_model.h"
@@ -240,6 +243,126 @@ TEST_F(RbdModelTest, RefusesAModelWithoutItsChainOrWithAnotherJointCount) {
   cv.model = options;
   EXPECT_THROW(FitModel(ParseModelSpec("rbd"), train_.X, train_.Y, Vector(), cv),
                std::invalid_argument);
+}
+
+// ---- rbd+pol: the URDF's torques as features beside a kernel -------------------------------
+
+TEST_F(RbdModelTest, TorqueFeaturesAreKdlsTermsAndPassTheBattery) {
+  const RigidBodyTorqueFeatureMap map(*nominal_);
+  const int N = nominal_->num_joints();
+  ASSERT_EQ(map.dim(), 3 * N);
+  Vector phi(map.dim());
+  for (Eigen::Index i : {Eigen::Index(5), Eigen::Index(1200)}) {
+    const Vector x = fast_.X.row(i).transpose();
+    map.Evaluate(x, phi);
+    const Vector q = x.head(N), qd = x.segment(N, N), qdd = x.tail(N);
+    // KDL's ChainDynParam terms, and their sum KDL's recursive Newton-Euler.
+    const Vector inertial = nominal_->MassMatrix(q) * qdd;
+    const Vector coriolis = nominal_->Coriolis(q, qd);
+    const Vector gravity = nominal_->Gravity(q);
+    const Vector tau = nominal_->InverseDynamics(q, qd, qdd);
+    EXPECT_LT((phi.head(N) - inertial).norm(), 1e-10 * (1 + inertial.norm()));
+    EXPECT_LT((phi.segment(N, N) - coriolis).norm(), 1e-10 * (1 + coriolis.norm()));
+    EXPECT_LT((phi.tail(N) - gravity).norm(), 1e-10 * (1 + gravity.norm()));
+    EXPECT_LT((phi.head(N) + phi.segment(N, N) + phi.tail(N) - tau).norm(), 1e-10 * (1 + tau.norm()));
+  }
+  testing::BatteryOptions options = testing::CountingBatteryOptions();
+  options.num_states = 12;
+  testing::RunFeatureMapBattery(map, options);
+}
+
+TEST_F(RbdModelTest, RbdPolSpecRoundTripsAndNeedsTheChain) {
+  const ModelSpec spec = ParseModelSpec("rbd+pol+fri");
+  EXPECT_EQ(spec.base, BaseModel::kPol);
+  EXPECT_TRUE(spec.rigid_body_features);
+  EXPECT_TRUE(spec.friction);
+  EXPECT_EQ(ToString(spec), "rbd+pol+fri");
+  EXPECT_EQ(ToString(ParseModelSpec("rbd+rbf")), "rbd+rbf");
+  EXPECT_FALSE(ParseModelSpec("rbd+fri").rigid_body_features);
+  for (const char* bad : {"rbd+lag", "rbd+rbd", "pol+rbd", "rbd+pol+fri+fri"}) {
+    EXPECT_THROW(ParseModelSpec(bad), std::invalid_argument) << bad;
+  }
+  try {
+    RobotModel(ParseModelSpec("rbd+pol"), 3);
+    FAIL() << "expected an error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("model 'rbd+pol' needs the robot's kinematic chain"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// A URDF whose inertial parameters are off by up to 30%: pol with the URDF model as its prior
+// mean predicts the fast motion better than pol alone and than the URDF alone, its components
+// add up, and its model file restores it.
+TEST_F(RbdModelTest, RbdPolLearnsWhatTheUrdfGetsWrong) {
+  // Every 16th training row (250) keeps pol's three-joint fit short.
+  const Eigen::Index rows = train_.X.rows() / 16;
+  Matrix X(rows, train_.X.cols()), Y(rows, train_.Y.cols());
+  for (Eigen::Index i = 0; i < rows; ++i) {
+    X.row(i) = train_.X.row(16 * i);
+    Y.row(i) = train_.Y.row(16 * i);
+  }
+  FitOptions options;
+  options.model.rigid_body = nominal_;
+  options.evidence.num_starts = 1;  // one search each: the comparison, not the search, is tested
+  options.check.enabled = false;
+  const FittedModel pol = FitModel(ParseModelSpec("pol+fri"), X, Y, Vector(), options);
+  const FittedModel both = FitModel(ParseModelSpec("rbd+pol+fri"), X, Y, Vector(), options);
+  std::printf("fit seconds: pol+fri %.2f, rbd+pol+fri %.2f\n", pol.summary.total_seconds,
+              both.summary.total_seconds);
+  ASSERT_TRUE(pol.summary.IsUsable()) << pol.summary.message;
+  ASSERT_TRUE(both.summary.IsUsable()) << both.summary.message;
+  const int N = nominal_->num_joints();
+  Matrix a, b, b_std;
+  pol.model.PredictRows(fast_.X, &a);
+  both.model.PredictRows(fast_.X, &b, &b_std);
+  // The URDF alone, for scale.
+  Matrix urdf(fast_.X.rows(), N);
+  for (Eigen::Index i = 0; i < fast_.X.rows(); ++i) {
+    urdf.row(i) = nominal_->InverseDynamics(fast_.X.row(i).head(N).transpose(),
+                                            fast_.X.row(i).segment(N, N).transpose(),
+                                            fast_.X.row(i).tail(N).transpose())
+                      .transpose();
+  }
+  const double pol_rms = std::sqrt((a - fast_.Y).squaredNorm() / a.size());
+  const double both_rms = std::sqrt((b - fast_.Y).squaredNorm() / b.size());
+  const double urdf_rms = std::sqrt((urdf - fast_.Y).squaredNorm() / urdf.size());
+  std::printf("fast motion RMS: pol+fri %.4g, URDF alone %.4g, rbd+pol+fri %.4g N m (noise %.3g)\n",
+              pol_rms, urdf_rms, both_rms, kNoise);
+  EXPECT_LT(both_rms, 0.5 * pol_rms);
+  EXPECT_LT(both_rms, 0.5 * urdf_rms);
+  // Components: pol's three blocks, friction, the URDF's three terms; they add up (pol runs
+  // in function space on these 250 rows: refit in weight space for the split).
+  ASSERT_EQ(both.model.ComponentNames(),
+            (std::vector<std::string>{"inertial", "coriolis", "gravity", "friction",
+                                      "urdf inertial", "urdf coriolis", "urdf gravity"}));
+  RobotModelOptions weight_space = options.model;
+  weight_space.form = Form::kWeightSpace;
+  RobotModel split(ParseModelSpec("rbd+pol+fri"), N, weight_space);
+  ASSERT_EQ(split.Fit(X, Y, both.model.hyperparameters()), Status::kOk);
+  Matrix d;
+  split.PredictRows(fast_.X.topRows(400), &d);
+  EXPECT_LT((d - b.topRows(400)).norm(), 1e-6 * (1 + b.topRows(400).norm()));  // the two forms agree
+  const Vector x = fast_.X.row(300).transpose();
+  std::vector<Component> parts;
+  ASSERT_EQ(split.PredictComponents(x, &parts), Status::kOk);
+  Vector sum = Vector::Zero(N), mean(N);
+  for (const Component& c : parts) sum += c.mean;
+  ASSERT_EQ(split.Predict(x, mean), Status::kOk);
+  const Vector q = x.head(N), qd = x.segment(N, N), qdd = x.tail(N);
+  EXPECT_LT((parts[6].mean - nominal_->Gravity(q)).norm(), 1e-9 * (1 + parts[6].mean.norm()));
+  EXPECT_LT((parts[4].mean - nominal_->MassMatrix(q) * qdd).norm(), 1e-9 * (1 + parts[4].mean.norm()));
+  EXPECT_EQ(parts[5].latent_variance, Vector::Zero(N));
+  (void)qd;
+  EXPECT_LT((sum - mean).norm(), 1e-9 * (1 + mean.norm()));
+  // The model file carries the URDF and restores the same predictions.
+  const std::string text = ModelFileText(both.model);
+  const RobotModel loaded = ParseModelFile(text, "model.json");
+  Matrix c, c_std;
+  loaded.PredictRows(fast_.X.topRows(40), &c, &c_std);
+  EXPECT_EQ(c, b.topRows(40));
+  EXPECT_EQ(c_std, b_std.topRows(40));
 }
 
 }  // namespace

@@ -423,18 +423,20 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
 
   Matrix Phi;
   base_map->EvaluateRows(X, &Phi);
+  const Matrix Yg = model.prior_mean() ? Matrix(Y - model.PriorMeanRows(X)) : Matrix(Y);
   Matrix refit_residual;
   {
     const Hyperparameters& h = base_hyper;
     WeightSpaceGP refit(PriorVariance(*base_map, h), h.noise_variance(), N,
                         h.output_scales());
-    if (refit.Fit(Phi, Y) != Status::kOk) {
+    // The refit learns what the model's GP learns: the torques less its prior mean (rbd+<base>).
+    if (refit.Fit(Phi, Yg) != Status::kOk) {
       out.status = DiagnosisStatus::kNumericalFailure;
       out.message = "the model could not be refitted on these data (posterior precision not "
                     "positive definite)";
       return out;
     }
-    refit_residual = Y - Phi * refit.weights();
+    refit_residual = Yg - Phi * refit.weights();
   }
 
   std::vector<Candidate> candidates;

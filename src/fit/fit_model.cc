@@ -237,8 +237,8 @@ bool SearchAndCheck(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters*
 
 // Feature-map models by evidence: noise and output scales profiled, then LBFGS on cached
 // Phi^T Phi. False when the fit ends here (summary finished by the caller's check).
-bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
-                          std::string* failure) {
+bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, const Matrix& Yr, Fit* fit,
+                          Hyperparameters* h, std::string* failure) {
   const auto& map = fit->model()->feature_map();
   if (!fit->Report(Format("accumulating Phi^T Phi over %d rows (D = %d)",
                           static_cast<int>(X.rows()), map->dim()))) {
@@ -246,7 +246,7 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
   }
   AccumulateOptions accumulate;
   accumulate.num_threads = fit->options().num_threads;
-  SufficientStatistics stats = AccumulateStatistics(*map, X, Y, accumulate);
+  SufficientStatistics stats = AccumulateStatistics(*map, X, Yr, accumulate);
   const WeightSpaceEvidence evidence(map, std::move(stats));
   if (fit->options().profile_noise_and_scales &&
       fit->options().output_scaling == OutputScaling::kPerJointRms) {
@@ -273,7 +273,7 @@ bool FeatureMapByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparam
       });
 }
 
-bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, const ConstVectorRef& t,
+bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Yr, const ConstVectorRef& t,
                                  Fit* fit, Hyperparameters* h, std::string* failure) {
   const FeatureMap& map = *fit->model()->feature_map();
   const FitOptions& o = fit->options();
@@ -287,7 +287,7 @@ bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, const ConstVe
     return false;
   }
   // Whole trajectories per fold when the log holds enough of them (t restarts).
-  const FoldStatistics folds(map, X, Y, o.cv_folds, SegmentStarts(t));
+  const FoldStatistics folds(map, X, Yr, o.cv_folds, SegmentStarts(t));
   const Hyperparameters base = *h;
   std::vector<double> shape_values;
   if (map.num_shape_parameters() > 0) {
@@ -336,14 +336,14 @@ bool FeatureMapByCrossValidation(const Matrix& X, const Matrix& Y, const ConstVe
 // Kernel models by evidence on an evenly spaced subset. *h holds the kernel's default
 // parameters in shape (RobotModel::DefaultHyperparameters); the fitted ones replace them, and
 // RobotModel::Fit(X, Y, *h) then builds the kernel from them.
-bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
-                      std::string* failure) {
+bool KernelByEvidence(const Matrix& X, const Matrix& Y, const Matrix& Yr, Fit* fit,
+                      Hyperparameters* h, std::string* failure) {
   RobotModel* model = fit->model();
   const Kernel& kernel = *model->kernel();
   const int limit = fit->options().max_evidence_rows;
   const std::vector<int> rows = EvenlySpacedRows(X.rows(), limit);
   const Matrix Xs = SelectRows(X, rows);
-  const Matrix Ys = SelectRows(Y, rows);
+  const Matrix Ys = SelectRows(Yr, rows);
   const int used = static_cast<int>(rows.size());
   if (!fit->Report(Format("maximising the evidence of the kernel on %d of %d rows (Ceres LBFGS, "
                           "O(m^3) per evaluation)",
@@ -365,8 +365,8 @@ bool KernelByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameter
 
 // rbd and lag models by evidence: the per-joint statistics of the regressor over every row, then LBFGS
 // over the block scales and the noise level of each joint.
-bool RegressorByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters* h,
-                         std::string* failure) {
+bool RegressorByEvidence(const Matrix& X, const Matrix& Y, const Matrix& Yr, Fit* fit,
+                         Hyperparameters* h, std::string* failure) {
   const SemiParametricRegressorMap& map = *fit->model()->regressor_map();
   if (!fit->Report(Format("accumulating the regressor's statistics over %d rows "
                           "(P = %d parameters)",
@@ -374,7 +374,7 @@ bool RegressorByEvidence(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparame
     return false;
   }
   RegressorStatistics stats(map.dim(), map.num_outputs());
-  stats.Accumulate(map, X, Y);
+  stats.Accumulate(map, X, Yr);
   if (!fit->Report("maximising the evidence over the prior widths and each joint's noise (Ceres "
                    "LBFGS)")) {
     return false;
@@ -547,23 +547,26 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
         "hyper-parameters)");
   }
   const Matrix X = ModelInputs(*model, states, t);
+  // Y: the torques, which RobotModel::Fit and the held-out check take; Yr: what the model's
+  // GP learns, the torques less the prior mean of rbd+<base>, the targets of the search.
   const Matrix Y = torques;
+  const Matrix Yr = model->prior_mean() ? Matrix(Y - model->PriorMeanRows(X)) : Y;
 
   Fit fit(options, model);
   FitSummary& summary = fit.summary();
   summary.rows = static_cast<int>(X.rows());
-  Hyperparameters h = model->DefaultHyperparameters(Y);
+  Hyperparameters h = model->DefaultHyperparameters(Yr);
   if (options.output_scaling == OutputScaling::kUnit) h.log_output_scale.setZero();
   std::string failure;
   bool go_on = true;
   switch (options.method) {
     case HyperparameterMethod::kEvidence:
-      go_on = regressor_model ? RegressorByEvidence(X, Y, &fit, &h, &failure)
-              : kernel_model  ? KernelByEvidence(X, Y, &fit, &h, &failure)
-                              : FeatureMapByEvidence(X, Y, &fit, &h, &failure);
+      go_on = regressor_model ? RegressorByEvidence(X, Y, Yr, &fit, &h, &failure)
+              : kernel_model  ? KernelByEvidence(X, Y, Yr, &fit, &h, &failure)
+                              : FeatureMapByEvidence(X, Y, Yr, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kCrossValidation:
-      go_on = FeatureMapByCrossValidation(X, Y, t, &fit, &h, &failure);
+      go_on = FeatureMapByCrossValidation(X, Yr, t, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kFixed:
       summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";

@@ -556,7 +556,7 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
       o.contains("max_explicit_features")
           ? static_cast<int>(r.Integer(o, "options", "max_explicit_features", 1, 1 << 30))
           : (1 << 30);
-  if (spec.base == BaseModel::kRbd) {
+  if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
     const Json& robot = r.Get(doc, "", "rigid_body");
     UrdfOptions urdf;
     urdf.root = r.String(robot, "rigid_body", "root");

@@ -58,14 +58,34 @@ const char* ToString(BaseModel base) {
 ModelSpec ParseModelSpec(const std::string& model) {
   const std::string text = Trim(model);
   ModelSpec spec;
-  std::string base = text;
-  const auto plus = text.find('+');
-  if (plus != std::string::npos) {
-    base = Trim(text.substr(0, plus));
-    const std::string rest = Trim(text.substr(plus + 1));
-    if (rest != "fri") {
-      throw std::invalid_argument("model '" + model + "': after '+' only 'fri' is accepted, got '" +
-                                  rest + "' (effects go in --effects, e.g. coulomb@2)");
+  // base, or "rbd+" base; then "+fri" optionally.
+  std::vector<std::string> tokens;
+  for (size_t start = 0;;) {
+    const size_t plus = text.find('+', start);
+    tokens.push_back(Trim(text.substr(start, plus == std::string::npos ? std::string::npos
+                                                                       : plus - start)));
+    if (plus == std::string::npos) break;
+    start = plus + 1;
+  }
+  size_t next = 0;
+  std::string base = tokens[next++];
+  const auto is_kernel_base = [](const std::string& t) {
+    return t == "pol" || t == "rbf" || t == "rbfs" || t == "motor";
+  };
+  if (base == "rbd" && next < tokens.size() && is_kernel_base(tokens[next])) {
+    spec.rigid_body_features = true;
+    base = tokens[next++];
+  }
+  if (next < tokens.size()) {
+    const std::string rest = tokens[next++];
+    if (rest != "fri" || next < tokens.size()) {
+      std::string after;
+      for (size_t k = next - 1; k < tokens.size(); ++k) after += (after.empty() ? "" : "+") + tokens[k];
+      throw std::invalid_argument(
+          "model '" + model + "': after '" + (spec.rigid_body_features ? "rbd+" : "") + base +
+          "+' only 'fri' is accepted, got '" + after +
+          "' (effects go in --effects, e.g. coulomb@2; a URDF's torques beside a kernel: "
+          "rbd+pol, rbd+rbf, rbd+rbfs, rbd+motor)");
     }
     spec.friction = true;
   }
@@ -80,7 +100,8 @@ ModelSpec ParseModelSpec(const std::string& model) {
   }
   if (!found) {
     throw std::invalid_argument("model '" + model + "': unknown base '" + base +
-                                "' (expected one of pol, rbf, rbfs, motor, rbd, lag, each optionally +fri)");
+                                "' (expected one of pol, rbf, rbfs, motor, rbd, lag, or rbd+pol, "
+                                "rbd+rbf, rbd+rbfs, rbd+motor; each optionally +fri)");
   }
   return spec;
 }
@@ -166,7 +187,8 @@ std::vector<EffectSpec> ParseEffectList(const std::string& text) {
 }
 
 std::string ToString(const ModelSpec& spec) {
-  return std::string(ToString(spec.base)) + (spec.friction ? "+fri" : "");
+  return std::string(spec.rigid_body_features ? "rbd+" : "") + ToString(spec.base) +
+         (spec.friction ? "+fri" : "");
 }
 
 std::string ToString(const EffectSpec& effect) {

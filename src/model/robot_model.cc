@@ -9,6 +9,7 @@
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/motor_feature_map.h"
 #include "structgp/feature/pol_feature_map.h"
+#include "structgp/feature/rigid_body_torque_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
@@ -38,6 +39,10 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
   if (options_.max_explicit_features < 1) {
     throw std::invalid_argument("RobotModelOptions.max_explicit_features must be >= 1, got " +
                                 std::to_string(options_.max_explicit_features));
+  }
+  if (spec_.base == BaseModel::kRbd || spec_.rigid_body_features) RequireChain();
+  if (spec_.rigid_body_features) {
+    prior_mean_ = std::make_shared<RigidBodyTorqueFeatureMap>(*options_.rigid_body);
   }
   if (spec_.base == BaseModel::kRbd || spec_.base == BaseModel::kLag) {
     BuildRegressor();
@@ -123,21 +128,25 @@ void RobotModel::BuildFeatureMap() {
   map_ = parts.size() == 1 ? parts.front() : std::make_shared<SumFeatureMap>(parts);
 }
 
+void RobotModel::RequireChain() const {
+  const std::string name = "model '" + ToString(spec_) + "'";
+  if (!options_.rigid_body) {
+    throw std::invalid_argument(name +
+                                " needs the robot's kinematic chain (RobotModelOptions.rigid_body; "
+                                "at the command line --urdf FILE)");
+  }
+  if (options_.rigid_body->num_joints() != num_joints_) {
+    throw std::invalid_argument(
+        name + ": the chain " + options_.rigid_body->root() + " -> " + options_.rigid_body->tip() +
+        " of " + options_.rigid_body->source() + " has " +
+        std::to_string(options_.rigid_body->num_joints()) + " moving joints, the data have " +
+        std::to_string(num_joints_));
+  }
+}
+
 void RobotModel::BuildRegressor() {
   std::shared_ptr<const RegressorMap> base;
   if (spec_.base == BaseModel::kRbd) {
-    if (!options_.rigid_body) {
-      throw std::invalid_argument(
-          "model 'rbd' needs the robot's kinematic chain (RobotModelOptions.rigid_body; at the "
-          "command line --urdf FILE)");
-    }
-    if (options_.rigid_body->num_joints() != num_joints_) {
-      throw std::invalid_argument(
-          "model 'rbd': the chain " + options_.rigid_body->root() + " -> " +
-          options_.rigid_body->tip() + " of " + options_.rigid_body->source() + " has " +
-          std::to_string(options_.rigid_body->num_joints()) + " moving joints, the data have " +
-          std::to_string(num_joints_));
-    }
     base = std::make_shared<RigidBodyRegressorMap>(*options_.rigid_body);
   } else {
     if (num_joints_ > kMaxLagrangianJoints ||
@@ -258,7 +267,7 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   } else {
     gp = std::make_unique<GaussianProcess>(*kernel_, hyper, num_joints_, options_.batch);
   }
-  const Status status = gp->Fit(X, Y);
+  const Status status = prior_mean_ ? gp->Fit(X, Y - PriorMeanRows(X)) : gp->Fit(X, Y);
   if (status != Status::kOk) return status;
   if (kernel_) kernel_ = kernel_->WithParameters(hyper.shape);
   gp_ = std::move(gp);
@@ -353,23 +362,63 @@ GaussianProcess& RobotModel::mutable_gp() {
   return *gp_;
 }
 
+RobotModel::Workspace RobotModel::MakeWorkspace() const {
+  Workspace workspace{gp().MakeWorkspace(), Vector()};
+  if (prior_mean_) workspace.prior_mean.resize(num_joints_);
+  return workspace;
+}
+
+Matrix RobotModel::PriorMeanRows(const ConstMatrixRef& X) const {
+  if (X.cols() != input_dim() && X.cols() != 3 * num_joints_) {
+    RequireSize("RobotModel::PriorMeanRows X", X.cols(), input_dim(), "columns");
+  }
+  Matrix mean = Matrix::Zero(X.rows(), num_joints_);
+  if (!prior_mean_) return mean;
+  Vector tau(num_joints_);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    prior_mean_->Torque(X.row(i).head(3 * num_joints_).transpose(), tau);
+    mean.row(i) = tau.transpose();
+  }
+  return mean;
+}
+
+namespace {
+
+// Adds the prior mean at x (the state part) to mean, after the GP's prediction succeeded.
+Status AddPriorMean(const RigidBodyTorqueFeatureMap* prior_mean, int num_joints,
+                    const ConstVectorRef& x, Status status, VectorRef mean, Vector* scratch) {
+  if (status != Status::kOk || prior_mean == nullptr) return status;
+  if (scratch->size() != num_joints) return Status::kInvalidInput;  // a workspace of another model
+  prior_mean->Torque(x.head(3 * num_joints), *scratch);
+  mean += *scratch;
+  return Status::kOk;
+}
+
+}  // namespace
+
 Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean, Workspace& workspace) const {
-  return gp().Predict(x, mean, workspace);
+  return AddPriorMean(prior_mean_.get(), num_joints_, x, gp().Predict(x, mean, workspace.gp),
+                      mean, &workspace.prior_mean);
 }
 
 Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                                        VectorRef latent_variance, VectorRef noisy_variance,
                                        Workspace& workspace) const {
-  return gp().PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace);
+  return AddPriorMean(
+      prior_mean_.get(), num_joints_, x,
+      gp().PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace.gp), mean,
+      &workspace.prior_mean);
 }
 
 Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean) const {
-  return gp().Predict(x, mean);
+  Workspace workspace = MakeWorkspace();
+  return Predict(x, mean, workspace);
 }
 
 Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                                        VectorRef latent_variance, VectorRef noisy_variance) const {
-  return gp().PredictWithVariance(x, mean, latent_variance, noisy_variance);
+  Workspace workspace = MakeWorkspace();
+  return PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace);
 }
 
 void RobotModel::PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std) const {
@@ -397,6 +446,9 @@ std::vector<std::string> RobotModel::ComponentNames() const {
   if (regressor_) return regressor_->component_names();
   std::vector<std::string> names;
   for (const auto& p : parts_) names.push_back(p.name);
+  if (prior_mean_) {
+    for (const FeatureBlock& b : prior_mean_->blocks()) names.push_back(b.name);
+  }
   return names;
 }
 
@@ -447,6 +499,15 @@ Status RobotModel::PredictComponents(const ConstVectorRef& x,
     const double quad = (S.middleRows(p.begin, p.size).transpose() * phi_p).squaredNorm();
     c.latent_variance = quad * s2;
     components->push_back(std::move(c));
+  }
+  if (prior_mean_) {
+    // The fixed mean's three terms, without variance.
+    const int N = num_joints_;
+    Vector terms(prior_mean_->dim());
+    prior_mean_->Evaluate(x.head(3 * N), terms);
+    for (const FeatureBlock& b : prior_mean_->blocks()) {
+      components->push_back(Component{b.name, terms.segment(b.begin, b.size), Vector::Zero(N)});
+    }
   }
   return Status::kOk;
 }

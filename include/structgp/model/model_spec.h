@@ -5,7 +5,8 @@
 /// What a robot model is made of, parsed once from the text users write at the command line
 /// ("pol+fri" and "coulomb@2,viscous,cogging@3:period=0.3") into typed values.
 ///
-/// Model grammar:  base ["+fri"]   with base one of pol, rbf, rbfs, motor, rbd, lag.
+/// Model grammar:  ["rbd+"] base ["+fri"]   with base one of pol, rbf, rbfs, motor, rbd, lag;
+///                 "rbd+" only before pol, rbf, rbfs or motor (a URDF's torques beside it).
 /// Effect grammar: item ("," item)*,  item = name ["@" joints] [":" key "=" value (";" key "=" value)*]
 ///                 joints = j ("/" j)*  (1-based; no "@" means every joint)
 /// e.g. "coulomb@2", "viscous", "cogging@3:period=0.3;harmonics=2", "stribeck@1/2:velocity=0.05".
@@ -41,6 +42,9 @@ struct ModelSpec {
   BaseModel base = BaseModel::kPol;
   /// The paper's semi-parametric friction (eq. 41): viscous, Coulomb and offset bases.
   bool friction = false;
+  /// "rbd+pol" (or rbd+rbf, rbd+rbfs, rbd+motor): the torques of a known chain (URDF) as
+  /// features beside the base, with a broad prior (feature/rigid_body_torque_feature_map.h).
+  bool rigid_body_features = false;
   std::vector<EffectSpec> effects;
 };
 

@@ -25,6 +25,14 @@
 /// (feature/rigid_body_regressor_map.h has the prior). lag is the Lagrangian regressor of a serial
 /// chain whose kinematics are not known (feature/lagrangian_regressor_map.h): one M(q) and V(q)
 /// for all joints, in the same regressor form, up to max_explicit_features parameters (N <= 4).
+///
+/// rbd+pol (rbd+rbf, rbd+rbfs, rbd+motor) is the base with the known chain's inverse dynamics as
+/// its prior mean: the base (and friction, effects) learns tau - tau_URDF(x), and predictions
+/// add tau_URDF(x) back (feature/rigid_body_torque_feature_map.h evaluates it), in whichever form
+/// the base runs; the mean is fixed (its inertial parameters are not identified: that is rbd),
+/// and the components gain "urdf inertial", "urdf coriolis", "urdf gravity" (zero variance).
+/// Fit takes the torques themselves; the hyper-parameter search of FitModel works on the
+/// residual targets Y - PriorMeanRows(X).
 
 #include <memory>
 #include <string>
@@ -35,6 +43,7 @@
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/feature/lagrangian_regressor_map.h"
+#include "structgp/feature/rigid_body_torque_feature_map.h"
 #include "structgp/feature/rigid_body_regressor_map.h"
 #include "structgp/feature/semi_parametric_regressor_map.h"
 #include "structgp/kernel/kernel.h"
@@ -59,7 +68,8 @@ struct RobotModelOptions {
   /// form is Form::kWeightSpace); beyond, the model runs in function space on k_pol's
   /// formula. D = 12, 133, 1151, 8830 for N = 1..4.
   int max_explicit_features = 2048;
-  /// rbd: the robot's chain (RigidBodyChain::FromUrdfFile), required for it, unused otherwise.
+  /// rbd and rbd+<base>: the robot's chain (RigidBodyChain::FromUrdfFile), required for them,
+  /// unused otherwise.
   std::shared_ptr<const RigidBodyChain> rigid_body;
 };
 
@@ -151,10 +161,20 @@ class RobotModel {
   const GaussianProcess& gp() const;
   GaussianProcess& mutable_gp();
 
-  /// Scratch of the const predictions (GaussianProcess::Workspace), one per thread.
-  using Workspace = GaussianProcess::Workspace;
+  /// Scratch of the const predictions, one per thread: the GP's, and the prior mean's.
+  struct Workspace {
+    GaussianProcess::Workspace gp;
+    Vector prior_mean;  ///< N (rbd+<base>)
+  };
   /// A workspace for the fitted model (allocates). Throws std::logic_error when not fitted.
-  Workspace MakeWorkspace() const { return gp().MakeWorkspace(); }
+  Workspace MakeWorkspace() const;
+
+  /// rbd+<base>: the fixed prior mean, the known chain's torques (null otherwise).
+  const std::shared_ptr<const RigidBodyTorqueFeatureMap>& prior_mean() const {
+    return prior_mean_;
+  }
+  /// The prior mean at every row of X (m x N; zeros without one). Allocates.
+  Matrix PriorMeanRows(const ConstMatrixRef& X) const;
 
   /// Predictive mean (N) and variances at x; see GaussianProcess. With a workspace:
   /// allocation-free and safe for concurrent calls on one const model, one workspace each;
@@ -191,6 +211,7 @@ class RobotModel {
   void BuildFeatureMap();
   void BuildKernel();
   void BuildRegressor();
+  void RequireChain() const;
 
   ModelSpec spec_;
   int num_joints_;
@@ -198,6 +219,7 @@ class RobotModel {
   bool uses_time_ = false;
   std::shared_ptr<const FeatureMap> map_;
   std::shared_ptr<const SemiParametricRegressorMap> regressor_;
+  std::shared_ptr<const RigidBodyTorqueFeatureMap> prior_mean_;
   std::vector<Part> parts_;                                   // component ranges in phi
   std::vector<std::pair<std::string, int>> parametric_names_;  // feature name -> index
   std::unique_ptr<Kernel> kernel_;  // at hyper_.shape once fitted
