@@ -1,5 +1,6 @@
 #include "online/learner_form.h"
 
+#include <algorithm>
 #include <utility>
 
 #include "model/factor_kernels.h"
@@ -73,7 +74,8 @@ FormScratch RegressorForm::MakeScratch() const {
   FormScratch s;
   s.psi.setZero(num_outputs_, features_);
   s.psi_t.setZero(features_, num_outputs_);
-  s.f1.setZero(features_);
+  // f1 also holds Psi mu (N) in Encode.
+  s.f1.setZero(std::max(features_, num_outputs_));
   s.f2.setZero(features_);
   s.map = map_->MakeScratch();
   return s;
@@ -83,7 +85,8 @@ void RegressorForm::Encode(const ConstVectorRef& x, const ConstVectorRef& tau, F
                            MatrixRef phi, MatrixRef y) const {
   map_->Evaluate(x, s.psi, s.map.get());
   phi = s.psi.transpose();
-  y.row(0).noalias() = tau.transpose() - (s.psi * prior_mean_).transpose();
+  s.f1.head(num_outputs_).noalias() = s.psi * prior_mean_;
+  y.row(0) = tau.transpose() - s.f1.head(num_outputs_).transpose();
 }
 
 void RegressorForm::Publish(const Matrix& W, Matrix& slot) const { slot = W + prior_mean_; }
