@@ -1,6 +1,7 @@
 // Numerical soak of the online weight-space model with forgetting: a 3-joint pol model
 // (PolFeatureMap(3), D = 1151) learns torques of the KDL-simulated ThreeLinkArm, one sample at a
-// time through UpdateAndPredict (the control-loop path) with forgetting factor lambda. At every
+// time through UpdateAndPredict (the control-loop path) with forgetting factor lambda, or with
+// --batch=K > 1 in bursts of K samples through UpdateBatch (the online learner's path). At every
 // check point the online weights are compared with a batch refit (WeightSpaceGP::Fit, one
 // Cholesky factorisation) on the same exponentially weighted data, accumulated independently
 // here, with the prior broadened to Lambda / lambda^n as documented in weight_space_gp.h.
@@ -9,7 +10,7 @@
 // --tolerance, or at any step a prediction is not finite or a predictive variance is negative.
 //
 //   soak_forgetting [--updates=1000000] [--check-every=100000] [--forgetting=0.99999]
-//                   [--tolerance=1e-8] [--seed=1]
+//                   [--tolerance=1e-8] [--seed=1] [--batch=1]
 //
 // The short form (10^4 updates) is a ctest; the long form and its results are in
 // docs/reliability.md.
@@ -38,6 +39,7 @@ struct Options {
   double forgetting = 0.99999;
   double tolerance = 1e-8;
   unsigned long seed = 1;
+  int batch = 1;
 };
 
 // Samples are simulated in blocks of this many (independent uniform states per block).
@@ -74,6 +76,8 @@ Options ParseArgs(int argc, char** argv) {
       o.forgetting = number;
     } else if (key == "tolerance") {
       o.tolerance = number;
+    } else if (key == "batch") {
+      o.batch = static_cast<int>(number);
     } else if (key == "seed") {
       o.seed = static_cast<unsigned long>(number);
     } else {
@@ -85,6 +89,9 @@ Options ParseArgs(int argc, char** argv) {
           ", --check-every a multiple of it");
   }
   if (!(o.forgetting > 0.0 && o.forgetting <= 1.0)) Usage("--forgetting must be in (0, 1]");
+  if (o.batch < 1 || kBlock % o.batch != 0) {
+    Usage("--batch must be >= 1 and divide " + std::to_string(kBlock));
+  }
   return o;
 }
 
@@ -97,11 +104,16 @@ int Run(const Options& o) {
   map.PriorVariance(map.default_shape_parameters(), lambda);
 
   WeightSpaceGP online(lambda, kNoiseVariance, P);
+  if (o.batch > 1) online.ReserveBatch(o.batch);
+  const Vector batch_forgetting = Vector::Constant(o.batch, o.forgetting);
+  const Vector batch_weights = Vector::Ones(o.batch);
+  Matrix batch_phi(D, o.batch), batch_y(P, o.batch);
   // The reference: exponentially weighted sufficient statistics, sum_i lambda^(n-i) ...
   SufficientStatistics weighted(D, P);
 
-  std::printf("soak_forgetting: D = %d, P = %d, updates = %ld, forgetting = %.8g, seed = %lu\n",
-              D, P, o.updates, o.forgetting, o.seed);
+  std::printf("soak_forgetting: D = %d, P = %d, updates = %ld, forgetting = %.8g, seed = %lu, "
+              "batch = %d\n",
+              D, P, o.updates, o.forgetting, o.seed, o.batch);
   std::printf("%10s %14s %14s %14s %12s %9s\n", "updates", "rel_dW", "rel_dvar", "min_var",
               "log_broaden", "time_s");
 
@@ -129,7 +141,28 @@ int Run(const Options& o) {
         y_block.row(i) = data.Y.row(i);
       }
     }
-    for (long i = 0; i < kBlock; ++i) {
+    for (long i = 0; o.batch > 1 && i < kBlock; i += o.batch) {
+      batch_phi = phi_block.middleRows(i, o.batch).transpose();
+      batch_y = y_block.middleRows(i, o.batch).transpose();
+      Status status = Status::kOk;
+      const int applied =
+          online.UpdateBatch(batch_phi, batch_y, batch_forgetting, batch_weights, &status);
+      if (applied != o.batch) {
+        std::printf("FAIL: UpdateBatch returned %s at update %ld\n", ToString(status),
+                    n + i + applied);
+        return 1;
+      }
+      phi_next = i + o.batch < kBlock ? Vector(phi_block.row(i + o.batch).transpose()) : phi_next;
+      if (online.PredictWithVariance(phi_block.row(i).transpose(), mean, latent, noisy) !=
+              Status::kOk ||
+          !mean.allFinite() || !(latent.minCoeff() >= 0.0)) {
+        std::printf("FAIL: bad prediction after update %ld\n", n + i + o.batch);
+        return 1;
+      }
+      min_variance = std::min(min_variance, latent.minCoeff());
+    }
+    if (o.batch > 1) map.Evaluate(data.X.row(kBlock).transpose(), phi_next);
+    for (long i = 0; o.batch == 1 && i < kBlock; ++i) {
       if (i + 1 < kBlock) {
         phi_next = phi_block.row(i + 1).transpose();
       } else {

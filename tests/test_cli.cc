@@ -158,7 +158,7 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
 
 TEST(Cli, EverySubcommandHasHelp) {
   TempDir dir;
-  for (const char* sub : {"fit", "predict", "evaluate", "diagnose", "compare", "demo"}) {
+  for (const char* sub : {"fit", "predict", "evaluate", "diagnose", "compare", "demo", "replay"}) {
     const Result r = RunCli(dir, {sub, "--help"});
     EXPECT_EQ(r.code, 0) << sub;
     EXPECT_TRUE(Contains(r.out, "Example:")) << sub << "\n" << r.out;
@@ -461,6 +461,112 @@ TEST(CliUserLogs, SeveralTrajectoriesInOneFileFitPredictAndDiagnose) {
   ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
   EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
   EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+}
+
+// ---- replay -------------------------------------------------------------------------------
+
+// From a fitted model and from zero, on a log of three trajectories (time starting again):
+// the JSON fields scripts rely on, the errors CSV, the learned model saved and usable.
+TEST(CliReplay, FromAModelAndFromZeroOnALogWithTrajectoryRestarts) {
+  TempDir dir;
+  const UserLogs logs = MakeUserLogs(dir);
+  const std::string model = dir.File("m.json");
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", logs.torques, "--model", "pol+fri", "--out", model,
+                         "--quiet"})
+                .code,
+            0);
+  const std::string json = dir.File("replay.json"), errors = dir.File("errors.csv"),
+                    saved = dir.File("m2.json");
+  const Result r = RunCli(dir, {"replay", "--data", logs.trajectories, "--model", model,
+                                "--forgetting", "0.999", "--out", errors, "--json", json,
+                                "--save", saved});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "3 trajectories")) << r.out;
+  const Json doc = Json::parse(ReadFile(json));
+  const std::string rows = ReadFile(errors);
+  const long steps = doc["steps"];
+  EXPECT_EQ(static_cast<long>(CountLines(rows)), steps + 1);
+  EXPECT_EQ(doc["trajectories"], 3);
+  EXPECT_EQ(doc["bad_samples"], 0);
+  EXPECT_EQ(doc["form"], "weight_space");
+  for (const char* key : {"update_us_p50", "update_us_p99", "predict_us_p99"}) {
+    ASSERT_TRUE(doc.contains(key)) << key;
+    EXPECT_GT(doc[key].get<double>(), 0.0) << key;
+  }
+  ASSERT_EQ(doc["joints"].size(), 2u);
+  for (const Json& joint : doc["joints"]) {
+    EXPECT_GT(joint["rms_first_fifth"].get<double>(), 0.0);
+    EXPECT_GT(joint["rms_last_fifth"].get<double>(), 0.0);
+  }
+  EXPECT_TRUE(Contains(rows.substr(0, rows.find('\n')), "step,t,trajectory,err1,err2"));
+  // The saved model is a model file the other commands read.
+  const Result evaluate = RunCli(dir, {"evaluate", "--model", saved, "--data", logs.torques});
+  EXPECT_EQ(evaluate.code, 0) << evaluate.err;
+
+  // From zero: the errors fall as the model learns.
+  const Result zero = RunCli(dir, {"replay", "--data", logs.trajectories, "--model-spec",
+                                   "pol+fri", "--json", json});
+  ASSERT_EQ(zero.code, 0) << zero.err;
+  const Json z = Json::parse(ReadFile(json));
+  for (const Json& joint : z["joints"]) {
+    EXPECT_LT(joint["rms_last_fifth"].get<double>(), joint["rms_first_fifth"].get<double>());
+  }
+}
+
+TEST(CliReplay, BadInputGivesExitCode2AndAClearMessage) {
+  TempDir dir;
+  WriteFile(dir.File("good.csv"), GoodCsv(300));
+  WriteFile(dir.File("three.csv"), GoodCsv(50, 3));
+  const std::string model = dir.File("m.json");
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", dir.File("good.csv"), "--model", "pol", "--out", model,
+                         "--quiet"})
+                .code,
+            0);
+  WriteFile(dir.File("old.json"), "keep");
+  const std::vector<BadCase> cases = {
+      {"missing file", {"replay", "--data", "{dir}none.csv", "--model", model}, {"none.csv"}, {}},
+      {"missing model", {"replay", "--data", "{dir}good.csv", "--model", "{dir}none.json"},
+       {"none.json"}, {}},
+      {"joint count", {"replay", "--data", "{dir}three.csv", "--model", model}, {"three.csv", "2"},
+       {}},
+      {"no model", {"replay", "--data", "{dir}good.csv"}, {"--model", "--model-spec"}, {}},
+      {"both models",
+       {"replay", "--data", "{dir}good.csv", "--model", model, "--model-spec", "pol"},
+       {"--model"}, {}},
+      {"bad forgetting",
+       {"replay", "--data", "{dir}good.csv", "--model", model, "--forgetting", "1.5"},
+       {"--forgetting"}, {}},
+      {"zero forgetting",
+       {"replay", "--data", "{dir}good.csv", "--model", model, "--forgetting", "0", "--json",
+        "{dir}old.json"},
+       {"--forgetting"}, {"old.json"}},
+      {"bad window", {"replay", "--data", "{dir}good.csv", "--model", model, "--window", "-3"},
+       {"--window"}, {}},
+      {"bad spec", {"replay", "--data", "{dir}good.csv", "--model-spec", "pool"}, {"pool"}, {}},
+      {"function space", {"replay", "--data", "{dir}good.csv", "--model-spec", "rbf"},
+       {"function space"}, {}},
+      {"rbd without urdf", {"replay", "--data", "{dir}good.csv", "--model-spec", "rbd"},
+       {"--urdf"}, {}},
+      {"unwritable json",
+       {"replay", "--data", "{dir}good.csv", "--model", model, "--json", "{dir}no/such/x.json"},
+       {"--json"}, {}},
+  };
+  for (const BadCase& c : cases) {
+    std::vector<std::string> args;
+    for (std::string a : c.args) {
+      const size_t at = a.find("{dir}");
+      if (at != std::string::npos) a.replace(at, 5, dir.File(""));
+      args.push_back(a);
+    }
+    const Result r = RunCli(dir, args);
+    EXPECT_EQ(r.code, 2) << c.name << ": " << r.err;
+    for (const std::string& part : c.expected) {
+      EXPECT_TRUE(Contains(r.err, part)) << c.name << ": expected '" << part << "' in\n" << r.err;
+    }
+    for (const std::string& f : c.outputs) {
+      EXPECT_EQ(ReadFile(dir.File(f)), "keep") << c.name << ": " << f << " changed";
+    }
+  }
 }
 
 TEST(CliUserLogs, MotorCurrentsFitPredictAndDiagnoseInCurrentUnits) {

@@ -167,6 +167,9 @@ OnlineLearnerOptions SmallOptions() {
   o.queue_capacity = 4096;
   o.covariance_publish_period = 7;
   o.idle_sleep = std::chrono::microseconds(20);
+  // One Update per sample: bit-identical to the reference below (the batched learner is
+  // compared to rounding in OnlineLearnerBatched).
+  o.max_batch = 1;
   return o;
 }
 
@@ -303,6 +306,75 @@ INSTANTIATE_TEST_SUITE_P(
                       LearnerCase{"window_manual", 1.0, 150, false}),
     [](const ::testing::TestParamInfo<LearnerCase>& p) { return p.param.name; });
 
+// Bursts through UpdateBatch: the learner equals the single-call reference to rounding, with
+// forgetting and windows, whatever grouping the learner thread happens to make.
+double MaxRelDiff(const Matrix& a, const Matrix& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(1e-300, b.cwiseAbs().maxCoeff());
+}
+
+class OnlineLearnerBatched : public ::testing::TestWithParam<LearnerCase> {};
+
+TEST_P(OnlineLearnerBatched, MatchesSingleCallsToRounding) {
+  const LearnerCase& c = GetParam();
+  std::cout << "[ seeds    ] map " << kMapSeed << ", data " << kDataSeed << "\n";
+  OnlineLearnerOptions o = SmallOptions();
+  o.forgetting = c.forgetting;
+  o.window_length = c.window;
+  o.start_thread = c.thread;
+  o.max_batch = 16;
+  const Samples data = MakeSamples(600, kDataSeed);
+  const Samples test = MakeSamples(20, kDataSeed + 1);
+  OnlineLearner learner(o);
+  ReferenceLearner reference(o);
+  int next = 0;
+  for (int round = 0; round < 3; ++round) {
+    // Manual: bursts of 37 samples processed at once (batches of 16, 16, 5).
+    for (const int end = next + 200; next < end; ++next) {
+      const Vector x = data.X.row(next).transpose();
+      const Vector y = data.Y.row(next).transpose();
+      ASSERT_EQ(learner.Submit(x, y), SubmitResult::kAccepted);
+      reference.Add(x, y);
+      if (!c.thread && next % 37 == 36) learner.ProcessPending();
+    }
+    ASSERT_TRUE(learner.WaitUntilIdle());
+    EXPECT_LT(MaxRelDiff(learner.model().weights(), reference.model().weights()), 1e-10);
+    EXPECT_LT(
+        MaxRelDiff(learner.model().covariance_factor(), reference.model().covariance_factor()),
+        1e-10);
+    Vector mean(kOutputs), var(kOutputs), ref_mean(kOutputs), ref_latent(kOutputs),
+        ref_noisy(kOutputs), phi(kFeatures);
+    for (int i = 0; i < test.X.rows(); ++i) {
+      const Vector x = test.X.row(i).transpose();
+      o.feature_map->Evaluate(x, phi);
+      WeightSpaceGP::Workspace ws = reference.model().MakeWorkspace();
+      ASSERT_EQ(reference.model().PredictWithVariance(phi, ref_mean, ref_latent, ref_noisy, ws),
+                Status::kOk);
+      ASSERT_EQ(learner.PredictWithVariance(x, mean, var), Status::kOk);
+      // 600 updates and removals (a 5-sample window re-derives the posterior from few
+      // samples after each): 1e-9 of the largest mean.
+      EXPECT_LT((mean - ref_mean).cwiseAbs().maxCoeff(), 1e-9 * ref_mean.cwiseAbs().maxCoeff());
+      EXPECT_LT((var - ref_latent).cwiseAbs().maxCoeff(), 1e-9 * ref_latent.maxCoeff());
+    }
+    EXPECT_EQ(learner.last_prediction_version(), next);
+  }
+  const OnlineLearnerSummary s = learner.summary();
+  EXPECT_EQ(s.updates, 600);
+  EXPECT_EQ(s.status_failures(), 0);
+  EXPECT_EQ(s.samples_in_model, c.window > 0 ? c.window : 600);
+  EXPECT_EQ(s.downdates, c.window > 0 ? 600 - c.window : 0);
+  if (!c.thread) EXPECT_LT(s.batches, s.processed) << "bursts should share passes";
+  EXPECT_FALSE(s.learner_failed);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, OnlineLearnerBatched,
+    ::testing::Values(LearnerCase{"plain_thread", 1.0, 0, true},
+                      LearnerCase{"window_forgetting_thread", 0.999, 150, true},
+                      LearnerCase{"forgetting_manual", 0.995, 0, false},
+                      LearnerCase{"window_manual", 1.0, 150, false},
+                      LearnerCase{"short_window_manual", 0.999, 5, false}),
+    [](const ::testing::TestParamInfo<LearnerCase>& p) { return p.param.name; });
+
 TEST(OnlineLearner, WindowModelIsThePosteriorOfTheWindow) {
   // Without forgetting, L downdates later the model holds exactly the last L samples: compare
   // with a batch fit of those (agreement to rounding of ~500 rank-one updates and downdates).
@@ -425,10 +497,13 @@ TEST(OnlineLearner, FullQueueDropsAndCounts) {
 // A removal is refused when the rest of the window leaves the leaving sample's direction to
 // a negligible prior: huge prior variance, fewer samples than features.
 TEST(OnlineLearner, WindowFailurePolicies) {
+  for (const int max_batch : {1, 16}) {
   for (const WindowFailurePolicy policy :
        {WindowFailurePolicy::kRebuild, WindowFailurePolicy::kKeepSample}) {
     SCOPED_TRACE(policy == WindowFailurePolicy::kRebuild ? "kRebuild" : "kKeepSample");
+    SCOPED_TRACE("max_batch " + std::to_string(max_batch));
     OnlineLearnerOptions o = SmallOptions();
+    o.max_batch = max_batch;
     o.prior_variance = Vector::Constant(kFeatures, 1e12);
     o.window_length = 5;
     o.window_failure_policy = policy;
@@ -449,12 +524,17 @@ TEST(OnlineLearner, WindowFailurePolicies) {
     if (policy == WindowFailurePolicy::kRebuild) {
       EXPECT_EQ(s.rebuilds, 25);
       EXPECT_EQ(s.samples_in_model, 5);
-      EXPECT_TRUE(BitEqual(learner.model().weights(), reference.model().weights()));
+      if (max_batch == 1) {
+        EXPECT_TRUE(BitEqual(learner.model().weights(), reference.model().weights()));
+      } else {
+        EXPECT_LT(MaxRelDiff(learner.model().weights(), reference.model().weights()), 1e-8);
+      }
     } else {
       EXPECT_EQ(s.rebuilds, 0);
       EXPECT_EQ(s.samples_in_model, 30);
     }
     EXPECT_TRUE(learner.model().weights().allFinite());
+  }
   }
 }
 

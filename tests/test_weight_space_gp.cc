@@ -407,5 +407,110 @@ TEST(WeightSpaceGP, BadInputIsRejectedAndModelUnchanged) {
   EXPECT_THROW(WeightSpaceGP(Vector::Ones(3), 0.1, 2, Vector::Ones(3)), std::invalid_argument);
 }
 
+
+// UpdateBatch against the same steps as single Update / Downdate calls (an independent path:
+// one projection per step on the current factor), for sizes that exercise the vector blocks
+// and the scalar tails of the fused pass, with forgetting, weights and removals mixed in.
+TEST(WeightSpaceGP, UpdateBatchEqualsTheSequenceOfSingleSteps) {
+  for (int D : {1, 5, 8, 13, 64, 203}) {
+    for (int k : {1, 2, 3, 7, 16}) {
+      SCOPED_TRACE("D = " + std::to_string(D) + ", k = " + std::to_string(k));
+      const int P = 3;
+      // More fitted samples than features, so that removing one keeps A well conditioned.
+      const int fitted = D + 40, total = fitted + 6 * k;
+      const Problem p = MakeProblem(total, D, P, 61 + D + k);
+      WeightSpaceGP batched(p.lambda, p.noise_variance, P, p.scales);
+      batched.ReserveBatch(k);
+      WeightSpaceGP single(p.lambda, p.noise_variance, P, p.scales);
+      ASSERT_EQ(batched.Fit(p.Phi.topRows(fitted), p.Y.topRows(fitted)), Status::kOk);
+      ASSERT_EQ(single.Fit(p.Phi.topRows(fitted), p.Y.topRows(fitted)), Status::kOk);
+      std::mt19937_64 rng(7);
+      std::uniform_real_distribution<double> uniform(0.5, 2.0);
+      int next = fitted;
+      int removed = 0;     // samples 0.. removed in order, each added with weight 1 by Fit
+      double decay = 1.0;  // what forgetting has left of the fitted samples' weights
+      for (int round = 0; round < 6; ++round) {
+        Matrix Phi(D, k), Y(P, k);
+        Vector forgetting(k), weights(k);
+        for (int i = 0; i < k; ++i) {
+          // Every third step removes a sample of the fit; the others add new ones.
+          if (i % 3 == 2 && removed < 20) {
+            Phi.col(i) = p.Phi.row(removed).transpose();
+            Y.col(i) = p.Y.row(removed).transpose();
+            forgetting[i] = 1.0;
+            weights[i] = -decay;
+            ++removed;
+          } else {
+            Phi.col(i) = p.Phi.row(next).transpose();
+            Y.col(i) = p.Y.row(next).transpose();
+            forgetting[i] = round % 2 == 0 ? 1.0 : 0.97;
+            decay *= forgetting[i];
+            weights[i] = uniform(rng);
+            ++next;
+          }
+        }
+        Status status = Status::kInvalidInput;
+        ASSERT_EQ(batched.UpdateBatch(Phi, Y, forgetting, weights, &status), k);
+        ASSERT_EQ(status, Status::kOk);
+        for (int i = 0; i < k; ++i) {
+          if (weights[i] < 0) {
+            ASSERT_EQ(single.Downdate(Phi.col(i), Y.col(i), -weights[i]), Status::kOk);
+          } else {
+            ASSERT_EQ(single.Update(Phi.col(i), Y.col(i), forgetting[i], weights[i]),
+                      Status::kOk);
+          }
+        }
+        EXPECT_LT(RelDiff(batched.weights(), single.weights()), 1e-11);
+        EXPECT_LT(RelDiff(batched.covariance_factor(), single.covariance_factor()), 1e-11);
+        EXPECT_TRUE(batched.covariance_factor().triangularView<Eigen::StrictlyLower>()
+                        .toDenseMatrix()
+                        .isZero(0.0));
+      }
+      EXPECT_EQ(batched.num_samples(), single.num_samples());
+      EXPECT_NEAR(batched.LogMarginalLikelihood(), single.LogMarginalLikelihood(),
+                  1e-9 * std::abs(single.LogMarginalLikelihood()));
+      EXPECT_NEAR(batched.effective_count(), single.effective_count(), 1e-12 * D);
+    }
+  }
+}
+
+// A step the single call would refuse stops the batch there: the steps before it are applied,
+// its status is returned, nothing after it is touched.
+TEST(WeightSpaceGP, UpdateBatchStopsAtTheFirstRefusedStep) {
+  const int D = 6, P = 2, k = 4;
+  const Problem p = MakeProblem(20, D, P, 71);
+  WeightSpaceGP batched(p.lambda, p.noise_variance, P, p.scales);
+  WeightSpaceGP single(p.lambda, p.noise_variance, P, p.scales);
+  batched.ReserveBatch(k);
+  Matrix Phi(D, k), Y(P, k);
+  for (int i = 0; i < k; ++i) {
+    Phi.col(i) = p.Phi.row(i).transpose();
+    Y.col(i) = p.Y.row(i).transpose();
+  }
+  Phi.col(2) = 100.0 * Vector::Ones(D);  // removing what was never added: refused
+  const Vector forgetting = Vector::Ones(k);
+  Vector weights = Vector::Ones(k);
+  weights[2] = -1.0;
+  Status status = Status::kOk;
+  EXPECT_EQ(batched.UpdateBatch(Phi, Y, forgetting, weights, &status), 2);
+  EXPECT_EQ(status, Status::kNotPositiveDefinite);
+  ASSERT_EQ(single.Update(Phi.col(0), Y.col(0)), Status::kOk);
+  ASSERT_EQ(single.Update(Phi.col(1), Y.col(1)), Status::kOk);
+  EXPECT_LT(RelDiff(batched.weights(), single.weights()), 1e-12);
+  EXPECT_EQ(batched.num_samples(), 2);
+  // Bad input: NaN at step 1 applies step 0 only; more steps than reserved apply nothing.
+  Phi.col(1)[0] = std::nan("");
+  weights[2] = 1.0;
+  EXPECT_EQ(batched.UpdateBatch(Phi, Y, forgetting, weights, &status), 1);
+  EXPECT_EQ(status, Status::kInvalidInput);
+  EXPECT_EQ(batched.num_samples(), 3);
+  Matrix wide = Matrix::Zero(D, k + 1);
+  EXPECT_EQ(batched.UpdateBatch(wide, Matrix::Zero(P, k + 1), Vector::Ones(k + 1),
+                                Vector::Ones(k + 1), &status),
+            0);
+  EXPECT_EQ(status, Status::kInvalidInput);
+  EXPECT_EQ(batched.num_samples(), 3);
+}
+
 }  // namespace
 }  // namespace structgp

@@ -66,6 +66,7 @@
 // Online learning next to a control loop.
 #include "structgp/online/triple_buffer.h"
 #include "structgp/online/online_learner.h"
+#include "structgp/online/replay.h"
 
 // Files: robot data CSV, atomic writes, model files.
 #include "structgp/io/data_error.h"

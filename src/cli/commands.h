@@ -27,6 +27,7 @@ std::unique_ptr<Command> MakeDiagnoseCommand();
 std::unique_ptr<Command> MakeCompareCommand();
 std::unique_ptr<Command> MakeDemoCommand();
 std::unique_ptr<Command> MakePrepareCommand();
+std::unique_ptr<Command> MakeReplayCommand();
 
 }  // namespace cli
 }  // namespace structgp

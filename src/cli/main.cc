@@ -1,4 +1,4 @@
-// The structgp program: fit, predict, evaluate, diagnose, compare, prepare and demo.
+// The structgp program: fit, predict, evaluate, diagnose, compare, prepare, replay and demo.
 //
 // Exit codes: 0 success; 2 a mistake in the command line or an input file (the message names
 // the flag, or the file with line and column); 1 a numerical failure. Outputs are written only
@@ -43,6 +43,7 @@ int Main(int argc, char** argv) {
   commands.push_back(MakeDiagnoseCommand());
   commands.push_back(MakeCompareCommand());
   commands.push_back(MakePrepareCommand());
+  commands.push_back(MakeReplayCommand());
   std::vector<CLI::App*> subcommands;
   subcommands.reserve(commands.size());
   for (auto& c : commands) subcommands.push_back(c->Register(&app));

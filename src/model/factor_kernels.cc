@@ -182,6 +182,92 @@ STRUCTGP_ALWAYS_INLINE void CarlsonRankOneImpl(double* S, int ld, int D, const d
   }
 }
 
+// The coefficients of columns j0..j0+C-1 of the k modifications as four-lane broadcasts, in
+// the order the block loop reads them: splat[((l C + t) 3 + {0, 1, 2}) 4 ..] = a, b, c.
+template <int C>
+STRUCTGP_ALWAYS_INLINE void SplatCoefficients(int j0, int k, const double* a, const double* b,
+                                              const double* c, int ldc, double* splat) {
+  for (int l = 0; l < k; ++l) {
+    const long off = static_cast<long>(l) * ldc + j0;
+    for (int t = 0; t < C; ++t) {
+      double* q = splat + (static_cast<long>(l) * C + t) * 12;
+      Store4(q, Splat4(a[off + t]));
+      Store4(q + 4, Splat4(b[off + t]));
+      Store4(q + 8, Splat4(c[off + t]));
+    }
+  }
+}
+
+// Columns j0..j0+C-1 of S over rows [i0, i0 + 4R) through the k modifications in order: the
+// R row packets of the C columns stay in registers while every modification's running gain
+// passes over them; the broadcast coefficients come from `splat` (SplatCoefficients).
+template <int C, int R>
+STRUCTGP_ALWAYS_INLINE void CarlsonTileK(double* const* col, int i0, int k, const double* splat,
+                                         int ldc, double* gains) {
+  Packet4 u[R][C];
+  for (int r = 0; r < R; ++r) {
+    for (int t = 0; t < C; ++t) u[r][t] = Load4(col[t] + i0 + 4 * r);
+  }
+  for (int l = 0; l < k; ++l) {
+    double* gp = gains + static_cast<long>(l) * ldc + i0;
+    Packet4 g[R];
+    for (int r = 0; r < R; ++r) g[r] = Load4(gp + 4 * r);
+    const double* q = splat + static_cast<long>(l) * C * 12;
+    for (int t = 0; t < C; ++t) {
+      const Packet4 va = Load4(q + 12 * t), vb = Load4(q + 12 * t + 4),
+                    vc = Load4(q + 12 * t + 8);
+      for (int r = 0; r < R; ++r) {
+        const Packet4 nu = va * u[r][t] - vb * g[r];
+        g[r] += vc * u[r][t];
+        u[r][t] = nu;
+      }
+    }
+    for (int r = 0; r < R; ++r) Store4(gp + 4 * r, g[r]);
+  }
+  for (int r = 0; r < R; ++r) {
+    for (int t = 0; t < C; ++t) Store4(col[t] + i0 + 4 * r, u[r][t]);
+  }
+}
+
+// Columns j0..j0+C-1 of S over rows [0, rows) (a multiple of 4), eight rows at a time.
+template <int C>
+STRUCTGP_ALWAYS_INLINE void CarlsonBlockK(double* S, int ld, int j0, int rows, int k,
+                                          const double* a, const double* b, const double* c,
+                                          int ldc, double* gains, double* splat) {
+  if (rows == 0) return;
+  double* col[C];
+  for (int t = 0; t < C; ++t) col[t] = S + static_cast<long>(j0 + t) * ld;
+  SplatCoefficients<C>(j0, k, a, b, c, ldc, splat);
+  int i = 0;
+  for (; i + 8 <= rows; i += 8) CarlsonTileK<C, 2>(col, i, k, splat, ldc, gains);
+  if (i < rows) CarlsonTileK<C, 1>(col, i, k, splat, ldc, gains);
+}
+
+// Column j over rows [row0, j) and its diagonal, through the k modifications in order.
+STRUCTGP_ALWAYS_INLINE void CarlsonColumnK(double* S, int ld, int row0, int j, int k,
+                                           const double* a, const double* b, const double* c,
+                                           int ldc, double* gains) {
+  double* col = S + static_cast<long>(j) * ld;
+  for (int i = row0; i < j; ++i) {
+    double u = col[i];
+    for (int l = 0; l < k; ++l) {
+      const long off = static_cast<long>(l) * ldc;
+      double& g = gains[off + i];
+      const double nu = a[off + j] * u - b[off + j] * g;
+      g += c[off + j] * u;
+      u = nu;
+    }
+    col[i] = u;
+  }
+  double u = col[j];
+  for (int l = 0; l < k; ++l) {
+    const long off = static_cast<long>(l) * ldc;
+    gains[off + j] = c[off + j] * u;
+    u *= a[off + j];
+  }
+  col[j] = u;
+}
+
 }  // namespace
 
 STRUCTGP_TARGET_CLONES
@@ -223,6 +309,72 @@ void CarlsonRankOne(double* S, int ld, int D, const double* a, const double* b, 
     CarlsonRankOneImpl<false>(S, ld, D, a, b, c, gain, nullptr, nullptr, nullptr, nullptr);
   } else {
     CarlsonRankOneImpl<true>(S, ld, D, a, b, c, gain, x1, x2, y1, y2);
+  }
+}
+
+}  // namespace internal
+}  // namespace structgp
+
+namespace structgp {
+namespace internal {
+
+STRUCTGP_TARGET_CLONES
+void UpperTransposeTimesMany(const double* S, int ld, int D, int k, const double* X, int ldx,
+                             double* Y, int ldy) {
+  // Column blocks of four outside, right-hand sides (in pairs) inside: the four columns of S
+  // are read from memory once and then from cache for every pair.
+  int j0 = 0;
+  for (; j0 + 4 <= D; j0 += 4) {
+    int r = 0;
+    for (; r + 2 <= k; r += 2) {
+      const double* x1 = X + static_cast<long>(r) * ldx;
+      const double* x2 = x1 + ldx;
+      double* y1 = Y + static_cast<long>(r) * ldy;
+      double* y2 = y1 + ldy;
+      Project4<true>(S, ld, j0, x1, x2, y1, y2);
+      for (int t = 0; t < 4; ++t) ProjectTail<true>(S, ld, j0, j0 + t, x1, x2, y1, y2);
+    }
+    for (; r < k; ++r) {
+      const double* x1 = X + static_cast<long>(r) * ldx;
+      double* y1 = Y + static_cast<long>(r) * ldy;
+      Project4<false>(S, ld, j0, x1, nullptr, y1, nullptr);
+      for (int t = 0; t < 4; ++t) ProjectTail<false>(S, ld, j0, j0 + t, x1, nullptr, y1, nullptr);
+    }
+  }
+  for (int j = j0; j < D; ++j) {
+    for (int r = 0; r < k; ++r) {
+      const double* x1 = X + static_cast<long>(r) * ldx;
+      double* y1 = Y + static_cast<long>(r) * ldy;
+      y1[j] = 0.0;
+      ProjectTail<false>(S, ld, 0, j, x1, nullptr, y1, nullptr);
+    }
+  }
+}
+
+STRUCTGP_TARGET_CLONES
+void CarlsonRankK(double* S, int ld, int D, int k, const double* a, const double* b,
+                  const double* c, int ldc, double* gains, double* splat) {
+  constexpr int kBlock = 4;
+  int j0 = 0;
+  for (; j0 + kBlock <= D; j0 += kBlock) {
+    // j0 is a multiple of 4: the rows above the block go through the vector loop.
+    CarlsonBlockK<kBlock>(S, ld, j0, j0, k, a, b, c, ldc, gains, splat);
+    for (int t = 0; t < kBlock; ++t) CarlsonColumnK(S, ld, j0, j0 + t, k, a, b, c, ldc, gains);
+  }
+  for (int j = j0; j < D; ++j) {
+    const int rows = j0;
+    CarlsonBlockK<1>(S, ld, j, rows, k, a, b, c, ldc, gains, splat);
+    CarlsonColumnK(S, ld, rows, j, k, a, b, c, ldc, gains);
+  }
+}
+
+// (S_l^T x)_j = a_j z_j - b_j sum_{i<j} c_i z_i with z = S_{l-1}^T x (see CarlsonCoefficients).
+void CarlsonTransposeApply(const double* a, const double* b, const double* c, int D, double* z) {
+  double prefix = 0.0;
+  for (int j = 0; j < D; ++j) {
+    const double zj = z[j];
+    z[j] = a[j] * zj - b[j] * prefix;
+    prefix += c[j] * zj;
   }
 }
 

@@ -25,6 +25,26 @@ void CarlsonCoefficients(const double* f, int D, double r, double scale, double*
 void CarlsonRankOne(double* S, int ld, int D, const double* a, const double* b, const double* c,
                     double* gain, const double* x1, const double* x2, double* y1, double* y2);
 
+// Y = S^T X for k right-hand sides (X: D x k, leading dimension ldx; Y: D x k, ldy), one pass
+// over S (the columns of a block of S are reused for every right-hand side while in cache).
+// Each column of Y has exactly the summation order of UpperTransposeTimes.
+void UpperTransposeTimesMany(const double* S, int ld, int D, int k, const double* X, int ldx,
+                             double* Y, int ldy);
+
+// Applies k Carlson modifications in sequence in one pass over S: S <- S M_1 M_2 ... M_k
+// (scales included), where modification l has the coefficients a + l ldc, b + l ldc,
+// c + l ldc (CarlsonCoefficients of f_l = scale_l S_{l-1}^T phi_l). On exit gains + l ldc
+// holds gain_l = scale_l S_{l-1} f_l (P_s phi_l of modification l). Tiles of four columns
+// by eight rows are carried through all k modifications while in registers: O(k D^2 / 2)
+// arithmetic, S read and written once. splat: scratch of kCarlsonSplatPerStep * k doubles.
+inline constexpr int kCarlsonSplatPerStep = 48;
+void CarlsonRankK(double* S, int ld, int D, int k, const double* a, const double* b,
+                  const double* c, int ldc, double* gains, double* splat);
+
+// z <- scale_l M_l^T z for the modification with coefficients a, b, c (size D): the projection
+// S_l^T x from S_{l-1}^T x, O(D).
+void CarlsonTransposeApply(const double* a, const double* b, const double* c, int D, double* z);
+
 }  // namespace internal
 }  // namespace structgp
 

@@ -271,6 +271,149 @@ Status WeightSpaceGP::Downdate(const ConstVectorRef& phi, const ConstVectorRef& 
   return Status::kOk;
 }
 
+void WeightSpaceGP::ReserveBatch(int max_steps) {
+  if (max_steps < 0) {
+    throw std::invalid_argument("WeightSpaceGP::ReserveBatch: expected max_steps >= 0, got " +
+                                std::to_string(max_steps));
+  }
+  const Eigen::Index D = num_features();
+  batch_capacity_ = max_steps;
+  for (Matrix* m : {&batch_z_, &batch_f_, &batch_a_, &batch_b_, &batch_c_, &batch_gain_}) {
+    m->setZero(D, max_steps);
+  }
+  batch_err_.setZero(num_outputs(), max_steps);
+  batch_inv_alpha_.setZero(max_steps);
+  batch_scale_.setZero(max_steps);
+  batch_coef_.setZero(max_steps, num_outputs());
+  batch_splat_.setZero(static_cast<Eigen::Index>(internal::kCarlsonSplatPerStep) * max_steps);
+}
+
+int WeightSpaceGP::UpdateBatch(const ConstMatrixRef& Phi, const ConstMatrixRef& Y,
+                               const ConstVectorRef& forgetting, const ConstVectorRef& weights,
+                               Status* status) {
+  const Eigen::Index k = Phi.cols();
+  Status local = Status::kOk;
+  Status& result = status != nullptr ? *status : local;
+  if (Phi.rows() != num_features() || Y.rows() != num_outputs() || Y.cols() != k ||
+      forgetting.size() != k || weights.size() != k || k > batch_capacity_) {
+    result = Status::kInvalidInput;
+    return 0;
+  }
+  result = Status::kOk;
+  ApplyStagedUpdate();
+  int done = 0;
+  while (done < k) {
+    bool refresh = false;
+    const int n = PlanBatch(Phi, Y, forgetting, weights, done, &result, &refresh);
+    if (n > 0) ApplyBatch(n);
+    done += n;
+    if (result != Status::kOk) return done;
+    // The headroom bound ran out mid-batch: the next round refreshes it on the updated S.
+    if (refresh) RefreshHeadroom();
+  }
+  return done;
+}
+
+int WeightSpaceGP::PlanBatch(const ConstMatrixRef& Phi, const ConstMatrixRef& Y,
+                             const ConstVectorRef& forgetting, const ConstVectorRef& weights,
+                             int begin, Status* status, bool* refresh) {
+  const int D = num_features();
+  const int m = static_cast<int>(Phi.cols()) - begin;
+  // One pass over S for every remaining step: z_i = S^T phi_i, and the errors against W.
+  internal::UpperTransposeTimesMany(factor_.data(), D, D, m, Phi.col(begin).data(),
+                                    static_cast<int>(Phi.outerStride()), batch_z_.data(), D);
+  int n = 0;
+  for (; n < m; ++n) {
+    const int i = begin + n;
+    const double lambda = forgetting[i];
+    const double v = weights[i];
+    const bool remove = v < 0.0;
+    const auto phi = Phi.col(i);
+    const auto y = Y.col(i);
+    if (!phi.allFinite() || !y.allFinite() || !std::isfinite(v) || v == 0.0 ||
+        !(lambda > 0.0 && lambda <= 1.0) || (remove && lambda != 1.0)) {
+      *status = Status::kInvalidInput;
+      return n;
+    }
+    auto z = batch_z_.col(n);
+    auto err = batch_err_.col(n);
+    err.noalias() = y - weights_.transpose() * phi;
+    // Through the steps planned before this one: z <- S_l^T phi, and the error against
+    // W_l = W_{l-1} + (gain_l / alpha_l) e_l^T, gain_l^T phi = scale_l f_l^T S_{l-1}^T phi.
+    for (int l = 0; l < n; ++l) {
+      const double cross = batch_scale_[l] * batch_f_.col(l).dot(z);
+      err -= (cross * batch_inv_alpha_[l]) * batch_err_.col(l);
+      internal::CarlsonTransposeApply(batch_a_.col(l).data(), batch_b_.col(l).data(),
+                                      batch_c_.col(l).data(), D, z.data());
+    }
+    if (!err.allFinite()) {
+      *status = Status::kInvalidInput;
+      return n;
+    }
+    double scale = 1.0, r = 0.0, alpha = 0.0, cost = 0.0;
+    if (!remove) {
+      scale = lambda == 1.0 ? 1.0 : 1.0 / std::sqrt(lambda);
+      cost = lambda == 1.0 ? 0.0 : -std::log(lambda);
+      const double fz = z.squaredNorm() * scale * scale;
+      r = 1.0 / v;
+      alpha = r + fz;
+      if (!std::isfinite(alpha)) {
+        *status = Status::kNotPositiveDefinite;
+        return n;
+      }
+    } else {
+      const double w = -v;
+      const double margin = 1.0 - w * z.squaredNorm();
+      if (!(margin > kMinDowndateMargin)) {
+        *status = Status::kNotPositiveDefinite;
+        return n;
+      }
+      cost = -std::log(margin);
+      r = -1.0 / w;
+      alpha = -margin / w;
+    }
+    if (cost > log_variance_headroom_) {
+      // The bound is short: with steps planned, apply them and refresh on the new S;
+      // otherwise S is current and the exact headroom decides.
+      if (n > 0) {
+        *refresh = true;
+        return n;
+      }
+      RefreshHeadroom();
+      if (!(cost <= log_variance_headroom_)) {
+        *status = Status::kNotPositiveDefinite;
+        return n;
+      }
+    }
+    log_variance_headroom_ -= cost;
+    auto f = batch_f_.col(n);
+    f = scale * z;
+    internal::CarlsonCoefficients(f.data(), D, r, scale, batch_a_.col(n).data(),
+                                  batch_b_.col(n).data(), batch_c_.col(n).data());
+    batch_inv_alpha_[n] = 1.0 / alpha;
+    batch_scale_[n] = scale;
+    if (remove) {
+      Account(y, 1.0, -v, -1.0);
+    } else {
+      Account(y, lambda, v, +1.0);
+    }
+  }
+  return n;
+}
+
+void WeightSpaceGP::ApplyBatch(int n) {
+  const int D = num_features();
+  internal::CarlsonRankK(factor_.data(), D, D, n, batch_a_.data(), batch_b_.data(),
+                         batch_c_.data(), D, batch_gain_.data(), batch_splat_.data());
+  // W' = W + sum_l (gain_l / alpha_l) e_l^T, output by output.
+  for (int l = 0; l < n; ++l) {
+    batch_coef_.row(l) = batch_inv_alpha_[l] * batch_err_.col(l).transpose();
+  }
+  for (int p = 0; p < num_outputs(); ++p) {
+    weights_.col(p).noalias() += batch_gain_.leftCols(n) * batch_coef_.col(p).head(n);
+  }
+}
+
 Status WeightSpaceGP::Predict(const ConstVectorRef& phi, VectorRef mean, Workspace& workspace) const {
   if (phi.size() != num_features() || mean.size() != num_outputs() || !phi.allFinite() ||
       workspace.projection.size() != num_features()) {

@@ -185,6 +185,29 @@ class WeightSpaceGP {
   /// unchanged) when that would lose definiteness; kInvalidInput on bad input.
   Status Downdate(const ConstVectorRef& phi, const ConstVectorRef& y, double weight = 1.0);
 
+  /// Sizes the scratch of UpdateBatch for up to max_steps steps per call (allocates
+  /// O(D max_steps + P max_steps); 0 frees it). Copies of the model keep the capacity.
+  void ReserveBatch(int max_steps);
+  /// Largest k UpdateBatch accepts (0 until ReserveBatch).
+  int batch_capacity() const { return batch_capacity_; }
+
+  /// k rank-one changes in order, as k calls of Update and Downdate would make them, with
+  /// one projection pass and one update pass over S for all of them (the blocked form of the
+  /// rank-one update: docs/derivations.md). Step i uses column i of Phi (D x k) and of Y
+  /// (P x k): weights[i] > 0 forgets with forgetting[i] in (0, 1] and adds the sample with
+  /// that weight (Update); weights[i] < 0 removes a sample added with weight -weights[i]
+  /// (Downdate; forgetting[i] must be 1). The result equals the sequence of single calls to
+  /// rounding (not bit for bit: the projections of later steps go through the earlier steps'
+  /// modifications). Every step is checked as its single call would check it; at the first
+  /// step the single call would refuse, the steps before it are applied, its status is
+  /// stored in *status (when not null) and its index returned (k and kOk when every step is
+  /// applied). O(k D^2) arithmetic, O(k^2 D) more for the coupling of the steps;
+  /// allocation-free for k <= batch_capacity() (kInvalidInput and nothing applied beyond, or
+  /// on mismatched sizes).
+  int UpdateBatch(const ConstMatrixRef& Phi, const ConstMatrixRef& Y,
+                  const ConstVectorRef& forgetting, const ConstVectorRef& weights,
+                  Status* status = nullptr);
+
   /// Scratch of the const predictions: S^T phi (D doubles).
   struct Workspace {
     Vector projection;
@@ -313,6 +336,26 @@ class WeightSpaceGP {
   Vector staged_err_;
   Vector staged_f_;
   double staged_scale_ = 1.0;
+
+  // Plans steps [begin, k) of UpdateBatch against the current S (coefficients, errors,
+  // accounting) until a step needs the exact headroom or is refused; returns the number
+  // planned and sets *status (kOk: all planned or the headroom must be refreshed first, with
+  // *refresh set).
+  int PlanBatch(const ConstMatrixRef& Phi, const ConstMatrixRef& Y,
+                const ConstVectorRef& forgetting, const ConstVectorRef& weights, int begin,
+                Status* status, bool* refresh);
+  // Applies the n planned steps to S and W in one pass.
+  void ApplyBatch(int n);
+
+  // UpdateBatch scratch (batch_capacity_ columns each): projections z, f, Carlson
+  // coefficients, gains (D x K); errors (P x K); 1 / alpha and scales (K); gain coefficients
+  // of W (K x P); the fused pass's broadcast coefficients.
+  int batch_capacity_ = 0;
+  Matrix batch_z_, batch_f_, batch_a_, batch_b_, batch_c_, batch_gain_;
+  Matrix batch_err_;
+  Vector batch_inv_alpha_, batch_scale_;
+  Matrix batch_coef_;
+  Vector batch_splat_;  // broadcast coefficients of the fused pass
 
   // Scratch of the non-const methods, sized at construction.
   Vector work_f_;     // S^T phi

@@ -8,52 +8,61 @@
 ///
 ///     control thread (e.g. 1 kHz)                 learner thread
 ///     ---------------------------                 --------------
-///     Submit(x, tau) --> SPSC queue (fixed) -->   pop, phi(x), WeightSpaceGP::Update
-///                                                 (forgetting; sliding window by Downdate)
+///     Submit(x, tau) --> SPSC queue (fixed) -->   pop up to max_batch samples, their columns,
+///                                                 WeightSpaceGP::UpdateBatch (forgetting;
+///                                                 sliding window by removals)
 ///     Predict(x, mean [, variance]) <-- triple buffers <-- publish W (and S)
+///
+/// Two model forms, one learner. Feature form (feature_map): phi(x) (D) with one weight
+/// vector per output, as WeightSpaceGP. Regressor form (regressor_map, the models rbd and lag):
+/// tau = Psi(x) theta with Psi N x P, one theta for every joint, a prior mean mu and one noise
+/// level sigma_j^2 per joint, as RegressorGP; a sample is N rank-one changes (the rows psi_j
+/// weighted by sigma_n^2 / sigma_j^2) of one P x P factor. Both run the same queue, batching,
+/// forgetting, window and publishing code (docs/online.md).
 ///
 /// Control thread (one thread: the queue's producer and the buffers' reader). Submit and
 /// Predict allocate nothing, take no lock, throw nothing, and run in bounded time:
 /// - Submit validates the sample (sizes, NaN/Inf, the configured input and torque ranges);
 ///   a bad sample is counted by reason and never reaches the model. A good one is copied into
 ///   a boost::lockfree::spsc_queue of fixed capacity; when the queue is full the sample is
-///   dropped and counted. O(input_dim + P).
-/// - Predict evaluates phi(x) (the feature map's cost) and returns W^T phi with the newest
-///   published weights W, O(D P); with the variance also s_j^2 sigma_n^2 ||S^T phi||^2 with the
-///   newest published factor S, O(D^2 / 2) more.
+///   dropped and counted. O(input_dim + N).
+/// - Predict evaluates phi(x) or Psi(x) (the map's cost, with the control thread's own
+///   scratch) and returns the mean with the newest published weights, O(D P) or O(N P); with
+///   the variance also the quadratic forms in the newest published factor S, O(D^2 / 2) or
+///   O(N P^2 / 2) more.
 ///
-/// What is published, and what it costs. The learner owns the model; the control thread reads
-/// copies. W (D x P) is copied into a TripleBuffer after every publish_period-th update and
-/// whenever the queue runs empty, so at control rates the mean always uses every sample
-/// processed so far: the copy is D P doubles (57 KB at D = 1024, P = 7), a few microseconds.
-/// The factor S (upper triangle of D x D) is needed only for the variance and is large
-/// (D (D + 1) / 2 doubles: 1 MB at D = 512, 4 MB at D = 1024), so it goes through a second
-/// TripleBuffer every covariance_publish_period-th update (0: never, no variance) and on
-/// WaitUntilIdle. The variance therefore lags the mean by up to that many updates; it is a
-/// confidence measure, and at one publish per 10-100 updates the copy adds only a few percent
-/// to the learner's work. Memory: the model's S and W, three copies of W, and, with the
-/// variance, three copies of S; with a window, the window's features and targets (W_len x D
-/// and W_len x P) and one copy of the prior model (for rebuilds).
+/// What is published, and what it costs. W (D x P; theta, P x 1, in the regressor form) is
+/// copied into a TripleBuffer after every publish_period-th update and whenever the queue runs
+/// empty, so at control rates the mean uses every sample processed so far. The factor S (upper
+/// triangle, D (D + 1) / 2 doubles: 1 MB at D = 512) goes through a second TripleBuffer every
+/// covariance_publish_period-th update (0: never, no variance) and on WaitUntilIdle, so the
+/// variance may lag the mean by that many updates. Memory: the model, three copies of W and,
+/// with the variance, of S; with a window, the window's columns and one copy of the starting
+/// model (for rebuilds).
 ///
-/// Learner thread. Pops samples, evaluates phi, and calls WeightSpaceGP::Update with the
-/// configured forgetting factor. With window_length = L > 0 the model holds the newest L
-/// samples only: after adding sample n it removes sample n - L by Downdate, with the weight
-/// forgetting has left it (forgetting^L). A removal can be refused (kNotPositiveDefinite: the
-/// rest of the window does not determine the posterior well enough in the leaving sample's
-/// direction — typical with strong forgetting, whose prior precision decays too); the
-/// WindowFailurePolicy decides what happens then. The learner allocates nothing either after
-/// construction. It sleeps for idle_sleep when the queue is empty (it is not a real-time
-/// thread and should run at a lower priority than the control thread).
+/// Learner thread. Pops the samples waiting (at most max_batch), turns them into columns and
+/// applies them, with the window's removals, in one WeightSpaceGP::UpdateBatch: one pass over
+/// the factor for the whole burst instead of one per sample, so a learner that falls behind
+/// catches up faster. Forgetting multiplies the precision by forgetting once per sample. With
+/// window_length = L > 0 the model holds the newest L samples only: after adding sample n it
+/// removes sample n - L, with the weight forgetting has left it (forgetting^L). A removal can
+/// be refused (kNotPositiveDefinite: the rest of the window does not determine the posterior
+/// well enough in the leaving sample's direction, typical with strong forgetting); the
+/// WindowFailurePolicy decides then. The learner allocates nothing after construction and
+/// sleeps for idle_sleep when the queue is empty (it is not a real-time thread).
 ///
-/// Exactness. For the same samples in the same order, the learner's model is bit-for-bit the
-/// model a single-threaded WeightSpaceGP builds with the same Update calls, and Predict after
-/// WaitUntilIdle returns exactly its Predict (the tests check this).
+/// Exactness. With max_batch = 1 the learner's model is bit for bit the model a
+/// single-threaded WeightSpaceGP builds with the same Update and Downdate calls (in the
+/// regressor form, one call per joint row), and Predict after WaitUntilIdle returns exactly
+/// its Predict. With max_batch > 1 it equals that model to rounding (UpdateBatch), and either
+/// way the batch posterior of the samples (WeightSpaceGP::Fit, RegressorGP::Fit) to the
+/// rounding of the updates; the tests check all three.
 ///
 /// Threads: Submit, Predict, PredictWithVariance and last_prediction_version are for the one
 /// control thread. summary() may be called from any thread. WaitUntilIdle, Stop and the
 /// destructor from the control thread or a supervisor (not concurrently with each other).
 /// With start_thread = false there is no learner thread: the caller runs the learner's work
-/// with ProcessPending (deterministic, e.g. for simulation).
+/// with ProcessPending (deterministic, e.g. for simulation and replays).
 
 #include <atomic>
 #include <chrono>
@@ -63,6 +72,8 @@
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/feature/feature_map.h"
+#include "structgp/feature/regressor_map.h"
+#include "structgp/model/regressor_gp.h"
 #include "structgp/model/weight_space_gp.h"
 
 namespace structgp {
@@ -98,18 +109,31 @@ enum class WindowFailurePolicy {
 };
 
 struct OnlineLearnerOptions {
-  /// The feature map phi (required). Its Evaluate is called on both threads concurrently: it
-  /// must be thread-safe and allocation-free (FeatureMap's contract).
+  /// The model: exactly one of feature_map (feature form) and regressor_map (regressor form).
+  /// Its Evaluate is called on both threads concurrently, each with its own scratch: it must
+  /// be thread-safe and allocation-free (FeatureMap's and RegressorMap's contracts).
   std::shared_ptr<const FeatureMap> feature_map;
-  /// Number of outputs P (joint torques), >= 1.
+  std::shared_ptr<const RegressorMap> regressor_map;
+  /// Number of outputs P (joint torques), >= 1; in the regressor form 0 or the map's N.
   int num_outputs = 0;
-  /// Prior variances Lambda (size D, all > 0). Empty: the map's PriorVariance at its default
-  /// shape parameters.
+  /// Prior variances Lambda (D features or P parameters, all > 0). Empty: the feature map's
+  /// PriorVariance at its default shape parameters, or the regressor map's prior_std()^2.
   Vector prior_variance;
-  /// Noise variance sigma_n^2 > 0, in units of s_j^2 (see WeightSpaceGP).
+  /// Regressor form: prior mean mu (P). Empty: the map's prior_mean(). Must be empty in the
+  /// feature form.
+  Vector prior_mean;
+  /// Noise variance sigma_n^2 > 0, in units of s_j^2: output j's noise variance is
+  /// sigma_n^2 s_j^2 (in both forms, as in GaussianProcess).
   double noise_variance = 0.01;
   /// Output scales s_j (size P, all > 0); empty: all 1.
   Vector output_scales;
+  /// Start from a posterior instead of the prior. Feature form: initial_model (D features,
+  /// P outputs; its prior, noise and scales replace the three fields above). Regressor form:
+  /// initial_regressor, fitted (its prior mean, prior variance and noise levels replace
+  /// prior_mean, prior_variance, noise_variance and output_scales; the learner continues
+  /// from its statistics). Null: start at the prior.
+  std::shared_ptr<const WeightSpaceGP> initial_model;
+  std::shared_ptr<const RegressorGP> initial_regressor;
   /// Forgetting factor lambda in (0, 1]: A <- lambda A + phi phi^T at each update. 1 keeps
   /// everything; 1 - 1/T gives a memory of about T samples.
   double forgetting = 1.0;
@@ -125,6 +149,9 @@ struct OnlineLearnerOptions {
   Vector target_limit;
   /// Queue capacity, in samples (>= 1). At 1 kHz, 1024 samples bridge a 1 s learner stall.
   int queue_capacity = 1024;
+  /// Most samples the learner applies in one pass over the factor (>= 1). 1: one Update per
+  /// sample (bit-identical to single calls); more: bursts go through UpdateBatch.
+  int max_batch = 16;
   /// Publish W after every publish_period-th update (>= 1), and whenever the queue runs empty.
   int publish_period = 1;
   /// Publish S after every covariance_publish_period-th update; 0 disables the variance
@@ -159,9 +186,10 @@ struct OnlineLearnerSummary {
   long downdates = 0;             ///< samples removed from the window
   long downdate_failures = 0;     ///< removals refused (then the WindowFailurePolicy)
   long rebuilds = 0;              ///< window rebuilds (WindowFailurePolicy::kRebuild)
+  long batches = 0;               ///< passes over the factor (UpdateBatch calls or single steps)
   long weight_publishes = 0;      ///< W published
   long covariance_publishes = 0;  ///< S published
-  long samples_in_model = 0;      ///< WeightSpaceGP::num_samples() after the last update
+  long samples_in_model = 0;      ///< samples in the model after the last update
   bool learner_failed = false;    ///< the learner thread stopped on an unexpected exception
 
   /// Samples rejected for any reason.
@@ -186,25 +214,29 @@ class OnlineLearner {
 
   const OnlineLearnerOptions& options() const;
   int input_dim() const;
+  /// D features (feature form) or P parameters (regressor form).
   int num_features() const;
+  /// Torques per sample.
   int num_outputs() const;
+  bool regressor_form() const { return options().regressor_map != nullptr; }
   bool has_variance() const { return options().covariance_publish_period > 0; }
 
   // ---- control thread: real-time ------------------------------------------------------------
 
-  /// Validates (x, tau) (x: input_dim entries, tau: P) and queues it for the learner.
-  /// Allocation-free, lock-free, never throws, O(input_dim + P).
+  /// Validates (x, tau) (x: input_dim entries, tau: num_outputs) and queues it for the
+  /// learner. Allocation-free, lock-free, never throws, O(input_dim + num_outputs).
   SubmitResult Submit(const ConstVectorRef& x, const ConstVectorRef& tau) noexcept;
 
-  /// Predictive mean (size P) at x with the newest published weights. kInvalidInput (nothing
-  /// written) on a wrong size or NaN/Inf in x. Allocation-free, lock-free, never throws;
-  /// cost: one feature evaluation + O(D P).
+  /// Predictive mean (num_outputs) at x with the newest published weights. kInvalidInput
+  /// (nothing written) on a wrong size or NaN/Inf in x. Allocation-free, lock-free, never
+  /// throws; cost: one map evaluation + O(D P) (regressor: O(N P)).
   Status Predict(const ConstVectorRef& x, VectorRef mean) noexcept;
-  /// Mean and latent variance s_j^2 sigma_n^2 phi^T A^{-1} phi (each size P), the variance with
-  /// the newest published factor (which may be older than the weights by up to
-  /// covariance_publish_period - 1 updates). Add s_j^2 sigma_n^2 for the variance of a noisy
-  /// observation. kInvalidInput without variance (covariance_publish_period = 0) or on bad
-  /// input. Cost: one feature evaluation + O(D P + D^2 / 2).
+  /// Mean and latent variance (each num_outputs): s_j^2 sigma_n^2 phi^T A^{-1} phi, or
+  /// psi_j Cov(theta) psi_j^T in the regressor form, with the newest published factor (which
+  /// may be older than the weights by up to covariance_publish_period - 1 updates). Add the
+  /// output's noise variance for that of a noisy observation. kInvalidInput without variance
+  /// (covariance_publish_period = 0) or on bad input. Cost: one map evaluation +
+  /// O(D P + D^2 / 2) (regressor: O(N P^2 / 2)).
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                              VectorRef latent_variance) noexcept;
 
@@ -230,8 +262,17 @@ class OnlineLearner {
   OnlineLearnerSummary summary() const;
 
   /// The learner's model. Only valid while the learner is not working: with start_thread =
-  /// false, after Stop(), or after WaitUntilIdle returned true and no Submit since.
+  /// false, after Stop(), or after WaitUntilIdle returned true and no Submit since. In the
+  /// regressor form it is the posterior of theta - mu: P features, one output, the joint rows
+  /// as samples weighted sigma_n^2 / sigma_j^2.
   const WeightSpaceGP& model() const;
+
+  /// Regressor form: the posterior as a fitted RegressorGP, from the statistics of the samples
+  /// in the model (forgotten and removed as the model's) with the prior broadened by
+  /// forgetting (model().effective_prior_variance()); the same posterior to rounding.
+  /// Allocates, O(N P^2 + P^3). Valid when model() is; throws std::logic_error in the feature
+  /// form or when the fit fails.
+  RegressorGP regressor_model() const;
 
  private:
   struct Impl;
