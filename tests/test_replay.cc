@@ -19,6 +19,7 @@
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/robot.h"
 #include "structgp/sim/trajectory.h"
+#include "structgp/sim/urdf.h"
 #include "urdf_test_util.h"
 
 namespace structgp {
@@ -51,6 +52,35 @@ TEST(Replay, OneStepErrorsFallOnAStationaryLog) {
   s.model->PredictRows(next.X, &mean);
   const Vector rms = ((mean - next.Y).colwise().squaredNorm() / 300.0).cwiseSqrt().transpose();
   for (int j = 0; j < 2; ++j) EXPECT_LT(rms[j], 1.5 * s.rms_last_fifth[j] + 1e-3);
+}
+
+// rbd+motor from the prior: the URDF (the simulated arm itself) is the prior mean, so the very
+// first predictions are already at the noise, the learner learns only what is left (nothing),
+// and the learned model, which carries the same mean, predicts new motion at the noise too.
+TEST(Replay, APriorMeanIsAddedToPredictionsAndTakenFromTargets) {
+  const sim::Robot robot = sim::TwoLinkArm();
+  RobotModelOptions ro;
+  ro.rigid_body = std::make_shared<const RigidBodyChain>(sim::ToRigidBodyChain(robot));
+  sim::SimulationOptions so;
+  so.noise_std = 0.01;
+  so.seed = 4;
+  const sim::Dataset data = sim::Simulate(robot, sim::UniformBox(2, 500, M_PI, 2.0, 5.0, 5), so);
+  const RobotModel model(ParseModelSpec("rbd+motor"), 2, ro);
+  const ReplaySummary s = Replay(model, data.X, data.Y, data.t, ReplayOptions());
+  EXPECT_EQ(s.bad_samples, 0);
+  for (int j = 0; j < 2; ++j) {
+    EXPECT_LT(s.rms_first_fifth[j], 1.5 * so.noise_std) << "joint " << j + 1;
+    EXPECT_LT(s.rms_last_fifth[j], 1.5 * so.noise_std) << "joint " << j + 1;
+  }
+  ASSERT_NE(s.model, nullptr);
+  const sim::Dataset next = sim::Simulate(robot, sim::UniformBox(2, 200, M_PI, 2.0, 5.0, 6), so);
+  Matrix mean;
+  s.model->PredictRows(next.X, &mean);
+  EXPECT_LT(std::sqrt((mean - next.Y).squaredNorm() / mean.size()), 1.5 * so.noise_std);
+  // Without the mean the same replay starts far from the torques.
+  const ReplaySummary plain = Replay(RobotModel(ParseModelSpec("motor"), 2), data.X, data.Y,
+                                     data.t, ReplayOptions());
+  EXPECT_GT(plain.rms_first_fifth[0], 10 * so.noise_std);
 }
 
 // A 3-joint random URDF chain; the log picks up 2 kg on the last link half way through.

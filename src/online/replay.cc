@@ -131,8 +131,10 @@ ReplaySummary Replay(const RobotModel& model, const ConstMatrixRef& X, const Con
   }
   Hyperparameters hyper = model.fitted() ? model.hyperparameters() : options.hyperparameters;
   if (!model.fitted() && hyper.log_output_scale.size() == 0) {
-    hyper = model.DefaultHyperparameters(
-        Y.topRows(std::min<Eigen::Index>(Y.rows(), options.default_rows)));
+    const Eigen::Index k = std::min<Eigen::Index>(Y.rows(), options.default_rows);
+    Matrix first = Y.topRows(k);
+    if (model.prior_mean()) first -= model.PriorMeanRows(X.topRows(k));
+    hyper = model.DefaultHyperparameters(first);
   }
   OnlineLearnerOptions lo = LearnerOptions(model, hyper);
   lo.forgetting = options.forgetting;
@@ -149,17 +151,21 @@ ReplaySummary Replay(const RobotModel& model, const ConstMatrixRef& X, const Con
   s.errors.setConstant(m, N, std::numeric_limits<double>::quiet_NaN());
   s.update_us.setZero(m);
   s.predict_us.setZero(m);
-  Vector x(X.cols()), y(N), mean(N);
+  Vector x(X.cols()), y(N), mean(N), prior(N);
+  prior.setZero();
+  // rbd+<base>: the learner learns the torques less the URDF's (the model's prior mean).
+  const RigidBodyTorqueFeatureMap* prior_mean = model.prior_mean().get();
   for (Eigen::Index i = 0; i < m; ++i) {
     x = X.row(i).transpose();
     y = Y.row(i).transpose();
     const auto t0 = Clock::now();
+    if (prior_mean != nullptr) prior_mean->Torque(x.head(3 * N), prior);
     const Status predicted = learner.Predict(x, mean);
     const auto t1 = Clock::now();
-    if (predicted == Status::kOk) s.errors.row(i) = (y - mean).transpose();
+    if (predicted == Status::kOk) s.errors.row(i) = (y - prior - mean).transpose();
     const long failures_before = learner.summary().update_failures;
     const auto t2 = Clock::now();
-    const SubmitResult submitted = learner.Submit(x, y);
+    const SubmitResult submitted = learner.Submit(x, y - prior);
     learner.ProcessPending();
     const auto t3 = Clock::now();
     if (submitted != SubmitResult::kAccepted ||
