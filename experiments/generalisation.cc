@@ -19,8 +19,8 @@
 // simulated chain (sim::ToUrdf -> RigidBodyChain, armature included) plus the true friction
 // bases: what a model that knows the kinematics and the effect bases gets; every other model is
 // fitted by the library's workflow with the CLI's defaults (FitModel, type-II maximum
-// likelihood). rbd uses the robot's URDF (armature not in it); "/off30" centres rbd's prior on
-// inertial parameters each off by up to +-30%.
+// likelihood). rbd and rbd+pol use the robot's URDF (armature not in it); "/off30" centres rbd's
+// prior (rbd+pol: its prior mean) on inertial parameters each off by up to +-30%.
 //
 // Columns: test RMS / noise per joint (the mean over the test logs; 1.0 is a perfect model),
 // the largest of them, the mean nMSE, the 2-sigma coverage of the noisy predictive band (worst
@@ -332,7 +332,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     if (!c.friction) spec.friction = false;  // the models are told which effects there are
     row.model = ToString(spec) + (off ? "/off30" : "");
     FitOptions options;
-    if (spec.base == BaseModel::kRbd) {
+    if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
       RigidBodyChain chain = ChainOf(robot, false);
       if (off) {
         std::mt19937_64 rng(5);
