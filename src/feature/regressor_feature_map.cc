@@ -4,16 +4,22 @@
 #include <stdexcept>
 #include <utility>
 
+#include "per_thread_scratch.h"
 #include "structgp/core/validate.h"
 
 namespace structgp {
+namespace internal {
+
+std::uint64_t NewScratchOwner() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1);
+}
+
+}  // namespace internal
+
 namespace {
 
-std::atomic<std::uint64_t> next_id{1};
-
-// One thread's scratch for the map it last served.
-struct ThreadScratch {
-  std::uint64_t owner = 0;
+struct RowScratch {
   std::unique_ptr<RegressorMap::Scratch> scratch;
   Matrix psi;
 };
@@ -21,7 +27,7 @@ struct ThreadScratch {
 }  // namespace
 
 RegressorFeatureMap::RegressorFeatureMap(std::shared_ptr<const RegressorMap> regressor, int row)
-    : regressor_(std::move(regressor)), row_(row), id_(next_id.fetch_add(1)) {
+    : regressor_(std::move(regressor)), row_(row), id_(internal::NewScratchOwner()) {
   if (!regressor_) throw std::invalid_argument("RegressorFeatureMap: null regressor");
   RequireInRange("RegressorFeatureMap row", row, 0, regressor_->num_outputs(), true);
 }
@@ -29,12 +35,9 @@ RegressorFeatureMap::RegressorFeatureMap(std::shared_ptr<const RegressorMap> reg
 void RegressorFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
   if (x.size() != input_dim()) RequireSize("RegressorFeatureMap::Evaluate x", x.size(), input_dim());
   if (phi.size() != dim()) RequireSize("RegressorFeatureMap::Evaluate phi", phi.size(), dim());
-  thread_local ThreadScratch local;
-  if (local.owner != id_) {
-    local.scratch = regressor_->MakeScratch();
-    local.psi.resize(regressor_->num_outputs(), regressor_->dim());
-    local.owner = id_;
-  }
+  RowScratch& local = internal::PerThreadScratch<RowScratch>(id_, [this] {
+    return RowScratch{regressor_->MakeScratch(), Matrix(regressor_->num_outputs(), regressor_->dim())};
+  });
   regressor_->Evaluate(x, local.psi, local.scratch.get());
   phi = local.psi.row(row_).transpose();
 }

@@ -1,41 +1,30 @@
 #include "structgp/feature/rigid_body_torque_feature_map.h"
 
-#include <atomic>
 #include <memory>
 #include <utility>
 
+#include "per_thread_scratch.h"
 #include "structgp/core/validate.h"
 
 namespace structgp {
 namespace {
 
-std::atomic<std::uint64_t> next_id{1};
-
-// One thread's scratch for the map it last served.
-struct ThreadScratch {
-  std::uint64_t owner = 0;
+struct ChainScratch {
   std::unique_ptr<RigidBodyChain::Workspace> workspace;
   Matrix regressor;
 };
 
-}  // namespace
-
-RigidBodyTorqueFeatureMap::RigidBodyTorqueFeatureMap(RigidBodyChain chain)
-    : chain_(std::move(chain)), id_(next_id.fetch_add(1)) {}
-
-namespace {
-
-ThreadScratch& LocalScratch(const RigidBodyChain& chain, std::uint64_t id) {
-  thread_local ThreadScratch local;
-  if (local.owner != id) {
-    local.workspace = std::make_unique<RigidBodyChain::Workspace>(chain.MakeWorkspace());
-    local.regressor.resize(chain.num_joints(), chain.num_parameters());
-    local.owner = id;
-  }
-  return local;
+ChainScratch& LocalScratch(const RigidBodyChain& chain, std::uint64_t id) {
+  return internal::PerThreadScratch<ChainScratch>(id, [&chain] {
+    return ChainScratch{std::make_unique<RigidBodyChain::Workspace>(chain.MakeWorkspace()),
+                        Matrix(chain.num_joints(), chain.num_parameters())};
+  });
 }
 
 }  // namespace
+
+RigidBodyTorqueFeatureMap::RigidBodyTorqueFeatureMap(RigidBodyChain chain)
+    : chain_(std::move(chain)), id_(internal::NewScratchOwner()) {}
 
 void RigidBodyTorqueFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
   if (x.size() != input_dim()) {
@@ -43,7 +32,7 @@ void RigidBodyTorqueFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi)
   }
   if (phi.size() != dim()) RequireSize("RigidBodyTorqueFeatureMap::Evaluate phi", phi.size(), dim());
   const int n = chain_.num_joints();
-  ThreadScratch& local = LocalScratch(chain_, id_);
+  ChainScratch& local = LocalScratch(chain_, id_);
   const auto q = x.segment(0, n), qd = x.segment(n, n), qdd = x.segment(2 * n, n);
   const RigidBodyChain::Terms terms[3] = {RigidBodyChain::Terms::kInertial,
                                           RigidBodyChain::Terms::kCoriolis,
@@ -58,7 +47,7 @@ void RigidBodyTorqueFeatureMap::Torque(const ConstVectorRef& x, VectorRef tau) c
   if (x.size() != input_dim()) RequireSize("RigidBodyTorqueFeatureMap::Torque x", x.size(), input_dim());
   const int n = chain_.num_joints();
   if (tau.size() != n) RequireSize("RigidBodyTorqueFeatureMap::Torque tau", tau.size(), n);
-  ThreadScratch& local = LocalScratch(chain_, id_);
+  ChainScratch& local = LocalScratch(chain_, id_);
   chain_.Regressor(x.segment(0, n), x.segment(n, n), x.segment(2 * n, n),
                    RigidBodyChain::Terms::kAll, local.regressor, *local.workspace);
   tau.noalias() = local.regressor * chain_.parameters();
