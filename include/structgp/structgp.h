@@ -14,6 +14,7 @@
 #include "structgp/core/types.h"
 #include "structgp/core/validate.h"
 #include "structgp/core/hyperparameters.h"
+#include "structgp/core/version.h"
 
 // Rigid bodies: chains from URDF, KDL dynamics, the inertial-parameter regressor.
 #include "structgp/rigid_body/rigid_body_chain.h"

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "structgp/io/atomic_file.h"
@@ -40,10 +41,6 @@ Matrix ModelInputs(const RobotModel& model, const RobotData& data) {
                         "'), but the file has no 't' column");
   }
   return structgp::ModelInputs(model, data.X, data.t);
-}
-
-std::string ModelLabel(const ModelSpec& spec) {
-  return ToString(spec) + (spec.effects.empty() ? "" : " + " + ToString(spec.effects));
 }
 
 ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects) {
@@ -160,6 +157,13 @@ std::string FitSummaryText(const RobotModel& model, const RobotData& data,
   return os.str();
 }
 
+std::string FitJson(const RobotModel& model, const RobotData& data, const FitSummary& summary) {
+  nlohmann::ordered_json doc = nlohmann::ordered_json::parse(ToJson(model, summary));
+  doc["data"] = data.source;
+  doc["num_samples"] = data.size();
+  return doc.dump(2) + "\n";
+}
+
 Errors ComputeErrors(const Matrix& predicted, const Matrix& measured) {
   const Eigen::Index m = measured.rows();
   const Eigen::Index N = measured.cols();
@@ -248,6 +252,7 @@ std::vector<report::JointData> ReportJoints(
 void CheckOutputPath(const std::string& flag, const std::string& path) {
   namespace fs = std::filesystem;
   if (path.empty()) throw UsageError(flag + ": empty path");
+  if (IsStdout(path)) return;
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     throw UsageError(flag + " '" + path + "': is a directory, expected a file path");
@@ -261,7 +266,38 @@ void CheckOutputPath(const std::string& flag, const std::string& path) {
 
 void WriteOutputs(const std::vector<OutputFile>& files) {
   for (const auto& f : files) CheckOutputPath(f.flag, f.path);
-  for (const auto& f : files) WriteTextAtomically(f.path, f.contents);
+  for (const auto& f : files) {
+    if (!IsStdout(f.path)) WriteTextAtomically(f.path, f.contents);
+  }
+  for (const auto& f : files) {
+    if (!IsStdout(f.path)) continue;
+    std::fflush(stderr);
+    if (std::fwrite(f.contents.data(), 1, f.contents.size(), stdout) != f.contents.size() ||
+        std::fflush(stdout) != 0) {
+      throw UsageError(f.flag + " -: could not write to stdout");
+    }
+  }
+}
+
+void PrintWritten(std::FILE* stream, const std::vector<OutputFile>& files) {
+  for (const auto& f : files) {
+    if (!IsStdout(f.path)) std::fprintf(stream, "wrote %s\n", f.path.c_str());
+  }
+}
+
+std::FILE* TextStream(const std::vector<std::pair<std::string, std::string>>& outputs) {
+  std::string flags;
+  int count = 0;
+  for (const auto& [flag, path] : outputs) {
+    if (!IsStdout(path)) continue;
+    flags += (flags.empty() ? "" : " and ") + flag;
+    ++count;
+  }
+  if (count > 1) {
+    throw UsageError(flags + ": only one output can be '-' (stdout), got " +
+                     std::to_string(count));
+  }
+  return count == 1 ? stderr : stdout;
 }
 
 }  // namespace cli

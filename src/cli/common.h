@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cstdio>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -66,9 +67,6 @@ RobotData ReadData(const std::string& path, int expected_joints = 0);
 /// DataError naming the file when the model needs t and the file has none.
 Matrix ModelInputs(const RobotModel& model, const RobotData& data);
 
-/// "pol", "pol+fri + coulomb@2,viscous@1".
-std::string ModelLabel(const ModelSpec& spec);
-
 /// Builds the model of --model and --effects text; UsageError naming the flag when either
 /// cannot be parsed or does not fit the robot.
 ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects);
@@ -101,6 +99,10 @@ FitSummary FitModel(const RobotData& data, const FitOptions& options, const Prog
 /// The summary of `structgp fit`: model and data, then the library's FitReport.
 std::string FitSummaryText(const RobotModel& model, const RobotData& data,
                            const FitSummary& summary);
+
+/// The JSON of `structgp fit --json`: the library's ToJson of the model and its summary, with
+/// "data" (the file) and "num_samples".
+std::string FitJson(const RobotModel& model, const RobotData& data, const FitSummary& summary);
 
 /// Errors of predictions against measurements, per joint and overall.
 struct Errors {
@@ -139,13 +141,24 @@ std::vector<report::JointData> ReportJoints(
 /// Files to write: path and contents. Every path is checked first (its directory exists, it is
 /// not a directory), then the files are written one by one, each atomically. Throws
 /// UsageError naming the flag when a check fails, so that nothing at all is written.
+/// The path "-" is stdout: the contents are written there, after every file.
 struct OutputFile {
   std::string flag;  // "--json"
   std::string path;
   std::string contents;
 };
+/// The output path that means stdout.
+inline constexpr const char* kStdoutPath = "-";
+inline bool IsStdout(const std::string& path) { return path == kStdoutPath; }
 void CheckOutputPath(const std::string& flag, const std::string& path);
 void WriteOutputs(const std::vector<OutputFile>& files);
+/// "wrote PATH" on `stream` for every output that is a file (not stdout).
+void PrintWritten(std::FILE* stream, const std::vector<OutputFile>& files);
+
+/// Where a command prints its summary: stdout, or stderr when one of its outputs (flag, path)
+/// is "-" (stdout then carries that output alone). UsageError naming the flags when more than
+/// one output is "-".
+std::FILE* TextStream(const std::vector<std::pair<std::string, std::string>>& outputs);
 
 }  // namespace cli
 }  // namespace structgp
