@@ -82,5 +82,6 @@
 
 // The HTML diagnosis report.
 #include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 
 #endif  // STRUCTGP_STRUCTGP_H_

@@ -164,26 +164,6 @@ std::string FitJson(const RobotModel& model, const RobotData& data, const FitSum
   return doc.dump(2) + "\n";
 }
 
-Errors ComputeErrors(const Matrix& predicted, const Matrix& measured) {
-  const Eigen::Index m = measured.rows();
-  const Eigen::Index N = measured.cols();
-  Errors e;
-  e.rms.resize(N);
-  e.nmse.resize(N);
-  double total = 0.0;
-  for (Eigen::Index j = 0; j < N; ++j) {
-    const double sse = (predicted.col(j) - measured.col(j)).squaredNorm();
-    const double mean = measured.col(j).mean();
-    const double var = (measured.col(j).array() - mean).square().sum() / static_cast<double>(m);
-    e.rms[j] = std::sqrt(sse / static_cast<double>(m));
-    e.nmse[j] = var > 0.0 ? sse / static_cast<double>(m) / var : HUGE_VAL;
-    total += sse;
-  }
-  e.overall_rms = std::sqrt(total / static_cast<double>(m * N));
-  e.overall_nmse = e.nmse.mean();
-  return e;
-}
-
 Predictions Predict(const RobotModel& model, const RobotData& data) {
   Predictions p;
   try {
@@ -195,12 +175,8 @@ Predictions Predict(const RobotModel& model, const RobotData& data) {
   return p;
 }
 
-std::vector<double> ToStd(const Vector& v) {
-  return std::vector<double>(v.data(), v.data() + v.size());
-}
-
 report::ModelErrors ReportErrors(const std::string& label, const Errors& errors) {
-  return report::ModelErrors{label, ToStd(errors.rms), ToStd(errors.nmse)};
+  return report::ToModelErrors(label, errors);
 }
 
 std::string RelativeChange(double before, double after) {
@@ -219,34 +195,9 @@ std::string DiagnosisSummary(const Diagnosis& d, const ModelSpec& spec,
 
 std::vector<report::JointData> ReportJoints(
     const RobotData& data, const std::vector<std::pair<std::string, Predictions>>& models) {
-  const int N = data.num_joints;
-  const Eigen::Index m = data.size();
-  auto column = [m](const auto& a, Eigen::Index c) {
-    std::vector<double> v(static_cast<size_t>(m));
-    for (Eigen::Index i = 0; i < m; ++i) v[static_cast<size_t>(i)] = a(i, c);
-    return v;
-  };
-  std::vector<report::JointData> joints;
-  for (int j = 0; j < N; ++j) {
-    report::JointData jd;
-    jd.joint = j + 1;
-    jd.t.resize(static_cast<size_t>(m));
-    for (Eigen::Index i = 0; i < m; ++i) {
-      jd.t[static_cast<size_t>(i)] = data.has_time() ? data.t[i] : static_cast<double>(i);
-    }
-    jd.q = column(data.X, j);
-    jd.qd = column(data.X, N + j);
-    jd.measured = column(data.Y, j);
-    for (const auto& [label, p] : models) {
-      report::PredictionSeries s;
-      s.label = label;
-      s.mean = column(p.mean, j);
-      s.std = column(p.std, j);
-      jd.predictions.push_back(std::move(s));
-    }
-    joints.push_back(std::move(jd));
-  }
-  return joints;
+  std::vector<report::ModelPredictions> series;
+  for (const auto& [label, p] : models) series.push_back({label, p.mean, p.std});
+  return report::JointSeries(data, series);
 }
 
 void CheckOutputPath(const std::string& flag, const std::string& path) {

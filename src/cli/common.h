@@ -23,6 +23,7 @@
 #include "structgp/io/robot_data.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
@@ -104,14 +105,9 @@ std::string FitSummaryText(const RobotModel& model, const RobotData& data,
 /// "data" (the file) and "num_samples".
 std::string FitJson(const RobotModel& model, const RobotData& data, const FitSummary& summary);
 
-/// Errors of predictions against measurements, per joint and overall.
-struct Errors {
-  Vector rms;                 // per joint
-  Vector nmse;                // per joint: MSE / variance of the measured torque
-  double overall_rms = 0.0;   // over every joint and sample
-  double overall_nmse = 0.0;  // mean of the per-joint nMSE
-};
-Errors ComputeErrors(const Matrix& predicted, const Matrix& measured);
+/// Errors of predictions against measurements, per joint and overall (report/report_data.h).
+using Errors = report::PredictionErrors;
+using report::ComputeErrors;
 
 /// Predictions of a model on the data: mean and latent standard deviation (m x N).
 struct Predictions {
@@ -120,8 +116,6 @@ struct Predictions {
 };
 Predictions Predict(const RobotModel& model, const RobotData& data);
 
-/// The entries of v as a std::vector.
-std::vector<double> ToStd(const Vector& v);
 /// The errors of one model for a report.
 report::ModelErrors ReportErrors(const std::string& label, const Errors& errors);
 

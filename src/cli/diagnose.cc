@@ -7,6 +7,7 @@
 #include "common.h"
 #include "structgp/io/model_file.h"
 #include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 
 namespace structgp {
 namespace cli {
@@ -68,16 +69,12 @@ class DiagnoseCommand : public Command {
     }
     std::vector<OutputFile> outputs = {{"--json", json_, ToJson(diagnosis)}};
     if (!report_.empty()) {
-      const Predictions p = Predict(model, data);
-      const Errors e = ComputeErrors(p.mean, data.Y);
       report::ReportData r;
-      r.title = "structgp diagnosis: " + ModelLabel(model.spec()) + " on " + data_;
-      r.data_source = data_;
-      const std::string label = ModelLabel(model.spec());
-      r.joints = ReportJoints(data, {{label, p}});
-      r.has_diagnosis = true;
-      r.diagnosis = diagnosis;
-      r.errors.push_back(ReportErrors(label, e));
+      try {
+        r = report::DiagnosisReportData(model, data, diagnosis);
+      } catch (const std::runtime_error& e) {
+        throw NumericalError(std::string("prediction failed: ") + e.what());
+      }
       r.notes.push_back("model file: " + model_);
       outputs.push_back({"--report", report_, report::RenderHtml(r)});
     }
