@@ -195,6 +195,13 @@ struct FitResult {
   std::string report;  // FitReport(model, summary)
 };
 
+// One entry of the summary's JSON, as a Python object.
+py::object SummaryEntry(const FitResult& r, const char* key) {
+  const py::object json = Json(r.json);
+  const py::object summary = json["summary"];
+  return summary[key];
+}
+
 void BindFitSummary(py::module_& m) {
   py::class_<FitResult>(m, "FitSummary",
                         "How a fit ended (the library's FitSummary): termination, message, the "
@@ -216,9 +223,9 @@ void BindFitSummary(py::module_& m) {
       .def_property_readonly("final_negative_log_prior",
                              [](const FitResult& r) { return r.summary.final_negative_log_prior; })
       .def_property_readonly("at_bounds", [](const FitResult& r) { return r.summary.at_bounds; })
-      .def_property_readonly("check", [](const FitResult& r) { return Json(r.json)["summary"]["check"]; },
+      .def_property_readonly("check", [](const FitResult& r) { return SummaryEntry(r, "check"); },
                              "The held-out check: ran, passed, rows, worst_joint, ..., message")
-      .def_property_readonly("starts", [](const FitResult& r) { return Json(r.json)["summary"]["starts"]; },
+      .def_property_readonly("starts", [](const FitResult& r) { return SummaryEntry(r, "starts"); },
                              "Each LBFGS run of the evidence search (termination, iterations, objective)")
       .def_property_readonly("rows", [](const FitResult& r) { return r.summary.rows; })
       .def_property_readonly("hyperparameter_rows", [](const FitResult& r) { return r.summary.hyperparameter_rows; })

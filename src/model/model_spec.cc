@@ -127,7 +127,7 @@ ModelSpec ParseModelLabel(const std::string& text) {
                                 "': '+' must be followed by 'fri' or effects, e.g. coulomb@2");
   }
   ModelSpec spec = ParseModelSpec(model);
-  spec.effects = ParseEffectList(rest);
+  spec.effects = ParseEffectList(Trim(rest));
   return spec;
 }
 
