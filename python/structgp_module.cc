@@ -289,7 +289,9 @@ class Model {
   }
 
   explicit Model(RobotModel model)
-      : spec_(model.spec()), options_(model.options()), model_(std::move(model)) {}
+      : spec_(model.spec()),
+        options_(model.options()),
+        model_(std::make_shared<const RobotModel>(std::move(model))) {}
 
   Model& Fit(const py::object& X, const py::object& Y, const py::object& t,
              const std::string& hyper, const py::object& starts, const std::string& prior,
@@ -318,21 +320,25 @@ class Model {
       throw NumericalError("fit failed (" + std::string(ToString(summary.termination)) + "): " +
                            summary.message);
     }
-    model_ = std::move(model);
-    summary_ = FitResult{summary, ToJson(*model_, summary), FitReport(*model_, summary)};
+    summary_ = FitResult{summary, ToJson(model, summary), FitReport(model, summary)};
+    model_ = std::make_shared<const RobotModel>(std::move(model));
     return *this;
   }
 
-  const RobotModel& fitted(const char* what) const {
+  // The fitted model, shared: a call that releases the GIL keeps it alive while another
+  // thread refits this Model.
+  std::shared_ptr<const RobotModel> shared(const char* what) const {
     if (!model_) {
       throw std::invalid_argument(std::string(what) + ": the model is not fitted (call fit, or "
                                   "Model.load a saved one)");
     }
-    return *model_;
+    return model_;
   }
+  const RobotModel& fitted(const char* what) const { return *shared(what); }
 
   py::object Predict(const py::object& X, const py::object& t, bool return_std) const {
-    const RobotModel& model = fitted("predict");
+    const std::shared_ptr<const RobotModel> held = shared("predict");
+    const RobotModel& model = *held;
     const Matrix inputs = ModelInputs(model, AsMatrix(X, "X"), AsVector(t, "t"));
     Matrix mean, std_dev;
     {
@@ -350,7 +356,8 @@ class Model {
   }
 
   py::dict Components(const py::object& X, const py::object& t) const {
-    const RobotModel& model = fitted("components");
+    const std::shared_ptr<const RobotModel> held = shared("components");
+    const RobotModel& model = *held;
     const Matrix inputs = ModelInputs(model, AsMatrix(X, "X"), AsVector(t, "t"));
     std::vector<ComponentRows> parts;
     {
@@ -407,13 +414,13 @@ class Model {
   }
 
   const ModelSpec& spec() const { return spec_; }
-  const std::optional<RobotModel>& model() const { return model_; }
+  bool is_fitted() const { return model_ != nullptr; }
   const std::optional<FitResult>& summary() const { return summary_; }
 
  private:
   ModelSpec spec_;
   RobotModelOptions options_;
-  std::optional<RobotModel> model_;
+  std::shared_ptr<const RobotModel> model_;
   std::optional<FitResult> summary_;
 };
 
@@ -473,7 +480,7 @@ save / Model.load use the CLI's model files.
         for (const EffectSpec& e : s.spec().effects) out.push_back(ToString(e));
         return out;
       })
-      .def_property_readonly("fitted", [](const Model& s) { return s.model().has_value(); })
+      .def_property_readonly("fitted", &Model::is_fitted)
       .def_property_readonly("num_joints", [](const Model& s) { return s.fitted("num_joints").num_joints(); })
       .def_property_readonly("uses_time", [](const Model& s) { return s.fitted("uses_time").uses_time(); },
                              "True when an effect needs t (then predict needs t too)")
@@ -565,7 +572,8 @@ void BindDiagnosis(py::module_& m) {
       [](const Model& model, const py::object& X, const py::object& Y, const py::object& t,
          const py::object& report, int folds, double min_evidence,
          const std::vector<std::string>& candidates) {
-        const RobotModel& fitted = model.fitted("diagnose");
+        const std::shared_ptr<const RobotModel> held = model.shared("diagnose");
+        const RobotModel& fitted = *held;
         RobotData data;
         data.X = AsMatrix(X, "X");
         data.Y = AsMatrix(Y, "Y");
