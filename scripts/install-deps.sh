@@ -16,6 +16,9 @@ packages=(
   chromium  # headless browser test of the HTML report (tests/test_report.cc)
   zlib1g-dev
   python3-sklearn  # experiments/sklearn_compare.py (side by side with scikit-learn; not in ctest)
+  pybind11-dev python3-dev python3-numpy  # the Python module (python/)
+  python3-pytest  # its tests (python/tests/, in ctest)
+  python3-matplotlib  # examples/python/diagnose_and_plot.py (its figure in docs/python.md)
   clang libclang-rt-14-dev  # libFuzzer targets in fuzz/ (scripts/run-fuzzers.sh)
 )
 

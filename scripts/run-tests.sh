@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds everything (Release, assertions kept on in the tests),
-# runs the whole test suite, then installs the package into a scratch prefix and builds the
-# downstream consumer in examples/consumer against it. Then the reliability passes
+# runs the whole test suite (with the Python module's pytest files), then installs the package
+# into a scratch prefix, builds the downstream consumer in examples/consumer against it and
+# imports the installed Python module. Then the reliability passes
 # (docs/reliability.md): the whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer
 # (build-asan), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer target
 # on 100,000 inputs from a fixed seed (build-fuzz, scripts/run-fuzzers.sh).
@@ -34,6 +35,12 @@ rm -rf "$build/consumer-data"
   "$build/consumer-data/consumer_model.json"
 "$build/src/cli/structgp" evaluate --model "$build/consumer-data/consumer_model.json" \
   --data "$build/consumer-data/test.csv"
+# The installed Python module imports (when the build has it: STRUCTGP_PYTHON).
+module=$(find "$prefix" -name 'structgp.cpython-*.so' | head -n 1)
+if [ -n "$module" ]; then
+  PYTHONPATH="$(dirname "$module")" /usr/bin/python3 -c \
+    'import structgp; print("installed Python module structgp", structgp.__version__)'
+fi
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # ASan + UBSan: every test of the suite (benchmark programs are not tests, and the experiments'

@@ -21,6 +21,8 @@
 #include <vector>
 
 #include "cli_runner.h"
+#include "structgp/feature/effects.h"
+#include "structgp/model/model_spec.h"
 #include "temp_files.h"
 
 namespace {
@@ -659,3 +661,125 @@ TEST(CliUrdf, BadRobotInputGivesExitCode2AndAClearMessage) {
 
 }  // namespace
 }  // namespace structgp
+
+namespace {
+
+// ---- conveniences: --version, --help's lists, fit --json, '-' as stdout ----------------------
+
+// A demo log to fit on, made once per test.
+std::string DemoTrain(const TempDir& dir) {
+  const std::string demo = dir.File("demo");
+  const Result r = RunCli(dir, {"demo", "--out", demo, "--quiet"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  return demo + "/train.csv";
+}
+
+TEST(CliConveniences, VersionIsTheProjectVersion) {
+  TempDir dir;
+  const Result r = RunCli(dir, {"--version"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out, std::string("structgp ") + STRUCTGP_PROJECT_VERSION + "\n");
+}
+
+TEST(CliConveniences, HelpListsEveryModelAndEffectOnALineOfItsOwn) {
+  TempDir dir;
+  const Result r = RunCli(dir, {"--help"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto has_line_for = [&r](const std::string& name) {
+    std::istringstream in(r.out);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("  " + name + " ", 0) == 0 && line.size() > name.size() + 8) return true;
+    }
+    return false;
+  };
+  for (structgp::BaseModel base : structgp::BaseModels()) {
+    EXPECT_TRUE(has_line_for(structgp::ToString(base))) << structgp::ToString(base) << "\n" << r.out;
+  }
+  for (const std::string& name : structgp::EffectNames()) {
+    EXPECT_TRUE(has_line_for(name)) << name << "\n" << r.out;
+  }
+  EXPECT_TRUE(Contains(r.out, "period (required, rad)")) << r.out;
+}
+
+TEST(CliConveniences, FitJsonHoldsTheSummaryTheEvidenceAndTheCoefficients) {
+  TempDir dir;
+  const std::string train = DemoTrain(dir);
+  const std::string model = dir.File("m.json");
+  const std::string json = dir.File("fit.json");
+  const Result r = RunCli(dir, {"fit", "--data", train, "--model", "pol", "--effects", "coulomb@2",
+                                "--out", model, "--json", json, "-q"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "wrote " + json)) << r.out;
+  const Json j = Json::parse(ReadFile(json));
+  EXPECT_EQ(j["model"], "pol + coulomb@2");
+  EXPECT_EQ(j["data"], train);
+  EXPECT_EQ(j["num_samples"], 4000);
+  EXPECT_EQ(j["size"]["features"], 134);
+  EXPECT_TRUE(j["summary"]["usable"].get<bool>());
+  EXPECT_EQ(j["summary"]["method"], "ml");
+  EXPECT_EQ(j["summary"]["starts"].size(), 3u);
+  // The evidence is the model file's, written by another path (io/model_file).
+  const Json file = Json::parse(ReadFile(model));
+  EXPECT_EQ(j["log_marginal_likelihood"].get<double>(),
+            file["log_marginal_likelihood"].get<double>());
+  // The demo hides 0.15 N m of Coulomb friction on joint 2 (its default --magnitude 0.1 of the
+  // joint's largest rigid-body torque, printed by the demo): the coefficient recovers it.
+  bool found = false;
+  for (const Json& c : j["coefficients"]) {
+    if (c["name"] != "coulomb@2") continue;
+    found = true;
+    EXPECT_EQ(c["joint"], 2);
+    EXPECT_NEAR(c["value"].get<double>(), 0.15, 0.01) << c.dump();
+    EXPECT_GT(c["std"].get<double>(), 0.0);
+  }
+  EXPECT_TRUE(found) << j.dump(2);
+}
+
+TEST(CliConveniences, DashWritesAnOutputToStdoutAndTheSummaryToStderr) {
+  TempDir dir;
+  const std::string train = DemoTrain(dir);
+  const std::vector<std::string> fit = {"fit", "--data", train, "--model", "pol+fri", "--hyper",
+                                        "fixed", "-q", "--out"};
+  std::vector<std::string> to_file = fit, to_stdout = fit;
+  to_file.push_back(dir.File("m.json"));
+  to_stdout.push_back("-");
+  Result r = RunCli(dir, to_file);
+  ASSERT_EQ(r.code, 0) << r.err;
+  Result s = RunCli(dir, to_stdout);
+  ASSERT_EQ(s.code, 0) << s.err;
+  EXPECT_EQ(s.out, ReadFile(dir.File("m.json"))) << "the same model file, on stdout";
+  EXPECT_TRUE(Contains(s.err, "log marginal likelihood")) << "the summary moves to stderr";
+  EXPECT_FALSE(fs::exists(dir.File("-")));
+
+  const std::string model = dir.File("m.json");
+  r = RunCli(dir, {"predict", "--model", model, "--data", train, "--out", dir.File("p.csv")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  s = RunCli(dir, {"predict", "--model", model, "--data", train, "--out", "-"});
+  ASSERT_EQ(s.code, 0) << s.err;
+  EXPECT_EQ(s.out, ReadFile(dir.File("p.csv")));
+
+  r = RunCli(dir, {"evaluate", "--model", model, "--data", train, "--json", dir.File("e.json")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  s = RunCli(dir, {"evaluate", "--model", model, "--data", train, "--json", "-"});
+  ASSERT_EQ(s.code, 0) << s.err;
+  EXPECT_EQ(s.out, ReadFile(dir.File("e.json")));
+  EXPECT_TRUE(Contains(s.err, "all")) << "the table moves to stderr: " << s.err;
+
+  s = RunCli(dir, {"diagnose", "--model", model, "--data", train, "--json", "-"});
+  ASSERT_EQ(s.code, 0) << s.err;
+  EXPECT_TRUE(Json::parse(s.out).contains("suggestions")) << s.out;
+
+  s = RunCli(dir, {"fit", "--data", train, "--model", "pol", "--hyper", "fixed", "-q", "--out",
+                   dir.File("x.json"), "--json", "-"});
+  ASSERT_EQ(s.code, 0) << s.err;
+  EXPECT_EQ(Json::parse(s.out)["model"], "pol");
+
+  // Two outputs cannot share stdout; nothing is written.
+  s = RunCli(dir, {"diagnose", "--model", model, "--data", train, "--json", "-", "--report", "-"});
+  EXPECT_EQ(s.code, 2);
+  EXPECT_TRUE(Contains(s.err, "--json and --report: only one output can be '-' (stdout)")) << s.err;
+  EXPECT_TRUE(s.out.empty()) << s.out;
+}
+
+}  // namespace

@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <optional>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -256,6 +257,51 @@ void CheckFrictionRecovery(const sim::Robot& robot, std::uint64_t seed) {
     EXPECT_LT(fc_std * scale, 0.03 * truth.coulomb) << "joint " << j;
     EXPECT_LT(fv_std * scale, 0.03 * truth.viscous) << "joint " << j;
   }
+}
+
+// The batch calls give what the one-row calls give: PredictComponentRows row by row equals
+// PredictComponents (bit for bit), its means add up to PredictRows' mean, and Coefficients
+// lists Coefficient(name, joint) of every friction feature on its joint.
+TEST(Decomposition, ComponentRowsAndCoefficientsAgreeWithTheOneRowCalls) {
+  const sim::Robot robot = sim::TwoLinkArm();
+  const Problem p = MakeProblem(robot, std::nullopt, 400, 50, 5);
+  RobotModel model(ParseModelSpec("pol+fri"), 2);
+  ASSERT_EQ(model.Fit(p.train.X, p.train.Y), Status::kOk);
+  ASSERT_TRUE(model.has_components());
+  const std::vector<ComponentRows> rows = model.PredictComponentRows(p.X_test);
+  ASSERT_EQ(rows.size(), model.ComponentNames().size());
+  Matrix mean, std_dev;
+  model.PredictRows(p.X_test, &mean, &std_dev);
+  Matrix sum = Matrix::Zero(mean.rows(), mean.cols());
+  std::vector<Component> parts;
+  for (Eigen::Index i = 0; i < p.X_test.rows(); ++i) {
+    ASSERT_EQ(model.PredictComponents(p.X_test.row(i).transpose(), &parts), Status::kOk);
+    for (size_t c = 0; c < rows.size(); ++c) {
+      EXPECT_EQ(rows[c].name, parts[c].name);
+      for (int j = 0; j < 2; ++j) {
+        EXPECT_EQ(rows[c].mean(i, j), parts[c].mean[j]);
+        EXPECT_EQ(rows[c].latent_std(i, j), std::sqrt(parts[c].latent_variance[j]));
+      }
+    }
+  }
+  for (const auto& c : rows) sum += c.mean;
+  EXPECT_LE((sum - mean).cwiseAbs().maxCoeff(), 1e-12 * mean.cwiseAbs().maxCoeff());
+
+  const std::vector<FeatureCoefficient> coefficients = model.Coefficients();
+  // viscous@j and coulomb@j on joint j's torque, the shared offset once per joint torque.
+  ASSERT_EQ(coefficients.size(), 6u);
+  for (const FeatureCoefficient& c : coefficients) {
+    const auto [value, std_c] = model.Coefficient(c.name, c.joint);
+    EXPECT_EQ(c.value, value) << c.name;
+    EXPECT_EQ(c.std, std_c) << c.name;
+    if (c.name != "offset") EXPECT_EQ(c.name.back() - '0', c.joint) << c.name;
+  }
+  // Without components: a function-space model says so.
+  RobotModel kernel(ParseModelSpec("rbf"), 2);
+  ASSERT_EQ(kernel.Fit(p.train.X.topRows(100), p.train.Y.topRows(100)), Status::kOk);
+  EXPECT_FALSE(kernel.has_components());
+  EXPECT_THROW(kernel.PredictComponentRows(p.X_test), std::invalid_argument);
+  EXPECT_TRUE(kernel.Coefficients().empty());
 }
 
 TEST(Decomposition, TwoLinkArmFrictionCoefficients) {

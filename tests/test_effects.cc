@@ -160,6 +160,50 @@ TEST(EffectText, RoundTripsThroughTheParser) {
   }
 }
 
+TEST(ModelLabelText, RoundTripsAndReadsTheShortForms) {
+  const ModelSpec spec = ParseModelLabel("pol+fri + coulomb@2,cogging@3:period=0.3");
+  EXPECT_EQ(spec.base, BaseModel::kPol);
+  EXPECT_TRUE(spec.friction);
+  ASSERT_EQ(spec.effects.size(), 2u);
+  EXPECT_EQ(ToString(spec.effects), ToString(ParseEffectList("coulomb@2,cogging@3:period=0.3")));
+  // ModelLabel writes what ParseModelLabel reads.
+  const ModelSpec again = ParseModelLabel(ModelLabel(spec));
+  EXPECT_EQ(ModelLabel(again), ModelLabel(spec));
+  EXPECT_EQ(ModelLabel(ParseModelLabel("lag")), "lag");
+  EXPECT_EQ(ModelLabel(ParseModelLabel("rbf+fri")), "rbf+fri");
+  // Without spaces, with or without +fri; a number with an exponent stays in its effect.
+  const ModelSpec short_form = ParseModelLabel("motor+coulomb@1:width=1e+1");
+  EXPECT_EQ(short_form.base, BaseModel::kMotor);
+  EXPECT_FALSE(short_form.friction);
+  ASSERT_EQ(short_form.effects.size(), 1u);
+  EXPECT_EQ(short_form.effects[0].params.at("width"), 10.0);
+  EXPECT_EQ(ParseModelLabel("pol+fri+viscous").effects.size(), 1u);
+  // Errors name the part, as the two parsers do.
+  auto message = [](const std::string& text) {
+    try {
+      ParseModelLabel(text);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message("pol+"), "model 'pol+': '+' must be followed by 'fri' or effects, e.g. coulomb@2");
+  EXPECT_EQ(message("pol+fri+"), "model 'pol+fri+': '+' must be followed by effects, e.g. coulomb@2");
+  EXPECT_NE(message("pole+fri").find("unknown base 'pole'"), std::string::npos);
+  EXPECT_NE(message("pol+fric").find("unknown effect 'fric'"), std::string::npos);
+}
+
+TEST(BaseModelList, EveryBaseParsesByItsNameAndHasADescription) {
+  std::vector<BaseModel> seen;
+  for (BaseModel base : BaseModels()) {
+    EXPECT_EQ(ParseModelSpec(ToString(base)).base, base);
+    EXPECT_GT(std::string(Describe(base)).size(), 10u) << ToString(base);
+    EXPECT_EQ(std::find(seen.begin(), seen.end(), base), seen.end()) << ToString(base);
+    seen.push_back(base);
+  }
+  EXPECT_EQ(seen.size(), 6u);
+}
+
 TEST(EffectDescribe, OnePhrasePerBuiltInEffect) {
   const std::vector<std::pair<std::string, std::string>> expected = {
       {"viscous", "viscous friction"},   {"coulomb", "Coulomb friction"},

@@ -14,6 +14,7 @@
 #include "structgp/core/types.h"
 #include "structgp/core/validate.h"
 #include "structgp/core/hyperparameters.h"
+#include "structgp/core/version.h"
 
 // Rigid bodies: chains from URDF, KDL dynamics, the inertial-parameter regressor.
 #include "structgp/rigid_body/rigid_body_chain.h"
@@ -82,5 +83,6 @@
 
 // The HTML diagnosis report.
 #include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 
 #endif  // STRUCTGP_STRUCTGP_H_

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "structgp/io/atomic_file.h"
@@ -40,10 +41,6 @@ Matrix ModelInputs(const RobotModel& model, const RobotData& data) {
                         "'), but the file has no 't' column");
   }
   return structgp::ModelInputs(model, data.X, data.t);
-}
-
-std::string ModelLabel(const ModelSpec& spec) {
-  return ToString(spec) + (spec.effects.empty() ? "" : " + " + ToString(spec.effects));
 }
 
 ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects) {
@@ -160,24 +157,11 @@ std::string FitSummaryText(const RobotModel& model, const RobotData& data,
   return os.str();
 }
 
-Errors ComputeErrors(const Matrix& predicted, const Matrix& measured) {
-  const Eigen::Index m = measured.rows();
-  const Eigen::Index N = measured.cols();
-  Errors e;
-  e.rms.resize(N);
-  e.nmse.resize(N);
-  double total = 0.0;
-  for (Eigen::Index j = 0; j < N; ++j) {
-    const double sse = (predicted.col(j) - measured.col(j)).squaredNorm();
-    const double mean = measured.col(j).mean();
-    const double var = (measured.col(j).array() - mean).square().sum() / static_cast<double>(m);
-    e.rms[j] = std::sqrt(sse / static_cast<double>(m));
-    e.nmse[j] = var > 0.0 ? sse / static_cast<double>(m) / var : HUGE_VAL;
-    total += sse;
-  }
-  e.overall_rms = std::sqrt(total / static_cast<double>(m * N));
-  e.overall_nmse = e.nmse.mean();
-  return e;
+std::string FitJson(const RobotModel& model, const RobotData& data, const FitSummary& summary) {
+  nlohmann::ordered_json doc = nlohmann::ordered_json::parse(ToJson(model, summary));
+  doc["data"] = data.source;
+  doc["num_samples"] = data.size();
+  return doc.dump(2) + "\n";
 }
 
 Predictions Predict(const RobotModel& model, const RobotData& data) {
@@ -191,12 +175,8 @@ Predictions Predict(const RobotModel& model, const RobotData& data) {
   return p;
 }
 
-std::vector<double> ToStd(const Vector& v) {
-  return std::vector<double>(v.data(), v.data() + v.size());
-}
-
 report::ModelErrors ReportErrors(const std::string& label, const Errors& errors) {
-  return report::ModelErrors{label, ToStd(errors.rms), ToStd(errors.nmse)};
+  return report::ToModelErrors(label, errors);
 }
 
 std::string RelativeChange(double before, double after) {
@@ -215,39 +195,15 @@ std::string DiagnosisSummary(const Diagnosis& d, const ModelSpec& spec,
 
 std::vector<report::JointData> ReportJoints(
     const RobotData& data, const std::vector<std::pair<std::string, Predictions>>& models) {
-  const int N = data.num_joints;
-  const Eigen::Index m = data.size();
-  auto column = [m](const auto& a, Eigen::Index c) {
-    std::vector<double> v(static_cast<size_t>(m));
-    for (Eigen::Index i = 0; i < m; ++i) v[static_cast<size_t>(i)] = a(i, c);
-    return v;
-  };
-  std::vector<report::JointData> joints;
-  for (int j = 0; j < N; ++j) {
-    report::JointData jd;
-    jd.joint = j + 1;
-    jd.t.resize(static_cast<size_t>(m));
-    for (Eigen::Index i = 0; i < m; ++i) {
-      jd.t[static_cast<size_t>(i)] = data.has_time() ? data.t[i] : static_cast<double>(i);
-    }
-    jd.q = column(data.X, j);
-    jd.qd = column(data.X, N + j);
-    jd.measured = column(data.Y, j);
-    for (const auto& [label, p] : models) {
-      report::PredictionSeries s;
-      s.label = label;
-      s.mean = column(p.mean, j);
-      s.std = column(p.std, j);
-      jd.predictions.push_back(std::move(s));
-    }
-    joints.push_back(std::move(jd));
-  }
-  return joints;
+  std::vector<report::ModelPredictions> series;
+  for (const auto& [label, p] : models) series.push_back({label, p.mean, p.std});
+  return report::JointSeries(data, series);
 }
 
 void CheckOutputPath(const std::string& flag, const std::string& path) {
   namespace fs = std::filesystem;
   if (path.empty()) throw UsageError(flag + ": empty path");
+  if (IsStdout(path)) return;
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     throw UsageError(flag + " '" + path + "': is a directory, expected a file path");
@@ -261,7 +217,38 @@ void CheckOutputPath(const std::string& flag, const std::string& path) {
 
 void WriteOutputs(const std::vector<OutputFile>& files) {
   for (const auto& f : files) CheckOutputPath(f.flag, f.path);
-  for (const auto& f : files) WriteTextAtomically(f.path, f.contents);
+  for (const auto& f : files) {
+    if (!IsStdout(f.path)) WriteTextAtomically(f.path, f.contents);
+  }
+  for (const auto& f : files) {
+    if (!IsStdout(f.path)) continue;
+    std::fflush(stderr);
+    if (std::fwrite(f.contents.data(), 1, f.contents.size(), stdout) != f.contents.size() ||
+        std::fflush(stdout) != 0) {
+      throw UsageError(f.flag + " -: could not write to stdout");
+    }
+  }
+}
+
+void PrintWritten(std::FILE* stream, const std::vector<OutputFile>& files) {
+  for (const auto& f : files) {
+    if (!IsStdout(f.path)) std::fprintf(stream, "wrote %s\n", f.path.c_str());
+  }
+}
+
+std::FILE* TextStream(const std::vector<std::pair<std::string, std::string>>& outputs) {
+  std::string flags;
+  int count = 0;
+  for (const auto& [flag, path] : outputs) {
+    if (!IsStdout(path)) continue;
+    flags += (flags.empty() ? "" : " and ") + flag;
+    ++count;
+  }
+  if (count > 1) {
+    throw UsageError(flags + ": only one output can be '-' (stdout), got " +
+                     std::to_string(count));
+  }
+  return count == 1 ? stderr : stdout;
 }
 
 }  // namespace cli

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cstdio>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -22,6 +23,7 @@
 #include "structgp/io/robot_data.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
@@ -66,9 +68,6 @@ RobotData ReadData(const std::string& path, int expected_joints = 0);
 /// DataError naming the file when the model needs t and the file has none.
 Matrix ModelInputs(const RobotModel& model, const RobotData& data);
 
-/// "pol", "pol+fri + coulomb@2,viscous@1".
-std::string ModelLabel(const ModelSpec& spec);
-
 /// Builds the model of --model and --effects text; UsageError naming the flag when either
 /// cannot be parsed or does not fit the robot.
 ModelSpec ParseSpecFlags(const std::string& model, const std::string& effects);
@@ -102,14 +101,13 @@ FitSummary FitModel(const RobotData& data, const FitOptions& options, const Prog
 std::string FitSummaryText(const RobotModel& model, const RobotData& data,
                            const FitSummary& summary);
 
-/// Errors of predictions against measurements, per joint and overall.
-struct Errors {
-  Vector rms;                 // per joint
-  Vector nmse;                // per joint: MSE / variance of the measured torque
-  double overall_rms = 0.0;   // over every joint and sample
-  double overall_nmse = 0.0;  // mean of the per-joint nMSE
-};
-Errors ComputeErrors(const Matrix& predicted, const Matrix& measured);
+/// The JSON of `structgp fit --json`: the library's ToJson of the model and its summary, with
+/// "data" (the file) and "num_samples".
+std::string FitJson(const RobotModel& model, const RobotData& data, const FitSummary& summary);
+
+/// Errors of predictions against measurements, per joint and overall (report/report_data.h).
+using Errors = report::PredictionErrors;
+using report::ComputeErrors;
 
 /// Predictions of a model on the data: mean and latent standard deviation (m x N).
 struct Predictions {
@@ -118,8 +116,6 @@ struct Predictions {
 };
 Predictions Predict(const RobotModel& model, const RobotData& data);
 
-/// The entries of v as a std::vector.
-std::vector<double> ToStd(const Vector& v);
 /// The errors of one model for a report.
 report::ModelErrors ReportErrors(const std::string& label, const Errors& errors);
 
@@ -139,13 +135,24 @@ std::vector<report::JointData> ReportJoints(
 /// Files to write: path and contents. Every path is checked first (its directory exists, it is
 /// not a directory), then the files are written one by one, each atomically. Throws
 /// UsageError naming the flag when a check fails, so that nothing at all is written.
+/// The path "-" is stdout: the contents are written there, after every file.
 struct OutputFile {
   std::string flag;  // "--json"
   std::string path;
   std::string contents;
 };
+/// The output path that means stdout.
+inline constexpr const char* kStdoutPath = "-";
+inline bool IsStdout(const std::string& path) { return path == kStdoutPath; }
 void CheckOutputPath(const std::string& flag, const std::string& path);
 void WriteOutputs(const std::vector<OutputFile>& files);
+/// "wrote PATH" on `stream` for every output that is a file (not stdout).
+void PrintWritten(std::FILE* stream, const std::vector<OutputFile>& files);
+
+/// Where a command prints its summary: stdout, or stderr when one of its outputs (flag, path)
+/// is "-" (stdout then carries that output alone). UsageError naming the flags when more than
+/// one output is "-".
+std::FILE* TextStream(const std::vector<std::pair<std::string, std::string>>& outputs);
 
 }  // namespace cli
 }  // namespace structgp

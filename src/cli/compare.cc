@@ -23,9 +23,11 @@ class CompareCommand : public Command {
                     "Model files, given twice or more: --model A --model B (A is the baseline)")
         ->required();
     cmd->add_option("--data", data_, "Test data: CSV with q, qd, qdd and tau columns")->required();
-    cmd->add_option("--json", json_, "Also write the errors as JSON (replaced atomically)");
+    cmd->add_option("--json", json_,
+                    "Also write the errors as JSON (replaced atomically; - for stdout)");
     cmd->add_option("--report", report_,
-                    "Also write an HTML report with the models' predictions overlaid");
+                    "Also write an HTML report with the models' predictions overlaid (- for "
+                    "stdout)");
     cmd->footer(
         "The change column is the relative change of the RMS from the first model.\n"
         "Example:\n"
@@ -41,6 +43,7 @@ class CompareCommand : public Command {
     }
     if (!json_.empty()) CheckOutputPath("--json", json_);
     if (!report_.empty()) CheckOutputPath("--report", report_);
+    std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     std::vector<RobotModel> models;
     for (const auto& path : models_) {
       models.push_back(LoadModel(path));
@@ -116,13 +119,13 @@ class CompareCommand : public Command {
       outputs.push_back({"--report", report_, report::RenderHtml(r)});
     }
     for (size_t k = 0; k < models.size(); ++k) {
-      std::printf("model %c  %s (%s)\n", static_cast<char>('A' + k), labels[k].c_str(),
+      std::fprintf(text_out, "model %c  %s (%s)\n", static_cast<char>('A' + k), labels[k].c_str(),
                   models_[k].c_str());
     }
-    std::printf("data     %s: %d samples\n", data_.c_str(), data.size());
-    std::fputs(Table(rows).c_str(), stdout);
+    std::fprintf(text_out, "data     %s: %d samples\n", data_.c_str(), data.size());
+    std::fputs(Table(rows).c_str(), text_out);
     WriteOutputs(outputs);
-    for (const auto& f : outputs) std::printf("wrote %s\n", f.path.c_str());
+    PrintWritten(text_out, outputs);
     return kExitOk;
   }
 

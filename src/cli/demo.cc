@@ -20,18 +20,6 @@ namespace structgp {
 namespace cli {
 namespace {
 
-// The simulated log as robot data in N m (the scenario's torques are relative to each joint's
-// largest rigid-body torque).
-RobotData ToRobotData(const sim::Dataset& d, const std::string& path) {
-  RobotData out;
-  out.num_joints = d.num_joints();
-  out.X = d.X;
-  out.Y = d.Y * d.torque_scale.asDiagonal();
-  out.t = d.t;
-  out.source = path;
-  return out;
-}
-
 class DemoCommand : public Command {
  public:
   CLI::App* Register(CLI::App* app) override {
@@ -106,8 +94,8 @@ class DemoCommand : public Command {
     const fs::path dir(dir_);
     const std::string train_path = (dir / "train.csv").string();
     const std::string test_path = (dir / "test.csv").string();
-    const RobotData train = ToRobotData(scenario.train, train_path);
-    const RobotData test = ToRobotData(scenario.test, test_path);
+    const RobotData train = sim::ToRobotData(scenario.train, train_path);
+    const RobotData test = sim::ToRobotData(scenario.test, test_path);
 
     std::printf("structgp demo: %s\n", scenario.description.c_str());
     if (o.effect != sim::HiddenEffect::kNone) {
@@ -176,13 +164,12 @@ class DemoCommand : public Command {
       after_err = ComputeErrors(after_pred.mean, test.Y);
       std::printf("3. refit %s on train.csv: %s\n", ModelLabel(after_spec).c_str(),
                   ModelSize(after).c_str());
-      for (const auto& name : after.ParametricFeatureNames()) {
-        const int j = name.find('@') != std::string::npos
-                          ? std::atoi(name.substr(name.find('@') + 1).c_str())
-                          : 0;
-        if (j < 1 || j > N) continue;
-        const auto [value, std] = after.Coefficient(name, j);
-        std::printf("   fitted %s on tau%d: %.4g +- %.2g N m\n", name.c_str(), j, value, std);
+      for (const FeatureCoefficient& c : after.Coefficients()) {
+        // Features of one joint, on its torque (a coefficient shared by every joint is left
+        // to the model file).
+        if (c.joint < 1 || c.name.find('@') == std::string::npos) continue;
+        std::printf("   fitted %s on tau%d: %.4g +- %.2g N m\n", c.name.c_str(), c.joint, c.value,
+                    c.std);
       }
       outputs.push_back({"--out", after_path, ModelFileText(after)});
       series.emplace_back(ModelLabel(after_spec), after_pred);

@@ -7,6 +7,7 @@
 #include "common.h"
 #include "structgp/io/model_file.h"
 #include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 
 namespace structgp {
 namespace cli {
@@ -23,8 +24,11 @@ class DiagnoseCommand : public Command {
                     "Data in time order: CSV with q, qd, qdd and tau columns, and t to try "
                     "drift")
         ->required();
-    cmd->add_option("--json", json_, "Findings to write as JSON (replaced atomically)")->required();
-    cmd->add_option("--report", report_, "Also write a self-contained HTML report");
+    cmd->add_option("--json", json_,
+                    "Findings to write as JSON (replaced atomically; - for stdout)")
+        ->required();
+    cmd->add_option("--report", report_,
+                    "Also write a self-contained HTML report (- for stdout)");
     cmd->add_option("--folds", options_.folds, "Contiguous folds of the held-out check")
         ->check(CLI::Range(2, 1000))
         ->capture_default_str();
@@ -50,6 +54,7 @@ class DiagnoseCommand : public Command {
   int Run() override {
     CheckOutputPath("--json", json_);
     if (!report_.empty()) CheckOutputPath("--report", report_);
+    std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     const RobotModel model = LoadModel(model_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);
@@ -64,24 +69,20 @@ class DiagnoseCommand : public Command {
     }
     std::vector<OutputFile> outputs = {{"--json", json_, ToJson(diagnosis)}};
     if (!report_.empty()) {
-      const Predictions p = Predict(model, data);
-      const Errors e = ComputeErrors(p.mean, data.Y);
       report::ReportData r;
-      r.title = "structgp diagnosis: " + ModelLabel(model.spec()) + " on " + data_;
-      r.data_source = data_;
-      const std::string label = ModelLabel(model.spec());
-      r.joints = ReportJoints(data, {{label, p}});
-      r.has_diagnosis = true;
-      r.diagnosis = diagnosis;
-      r.errors.push_back(ReportErrors(label, e));
+      try {
+        r = report::DiagnosisReportData(model, data, diagnosis);
+      } catch (const std::runtime_error& e) {
+        throw NumericalError(std::string("prediction failed: ") + e.what());
+      }
       r.notes.push_back("model file: " + model_);
       outputs.push_back({"--report", report_, report::RenderHtml(r)});
     }
-    std::printf("diagnosis of %s (%s) on %s: %d samples\n", ModelLabel(model.spec()).c_str(),
+    std::fprintf(text_out, "diagnosis of %s (%s) on %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());
-    std::fputs(DiagnosisSummary(diagnosis, model.spec(), options_).c_str(), stdout);
+    std::fputs(DiagnosisSummary(diagnosis, model.spec(), options_).c_str(), text_out);
     WriteOutputs(outputs);
-    for (const auto& f : outputs) std::printf("wrote %s\n", f.path.c_str());
+    PrintWritten(text_out, outputs);
     return kExitOk;
   }
 

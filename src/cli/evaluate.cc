@@ -19,7 +19,8 @@ class EvaluateCommand : public Command {
         "evaluate", "RMS and normalised MSE of a model on a data file, per joint and overall");
     cmd->add_option("--model", model_, "Model file written by 'structgp fit'")->required();
     cmd->add_option("--data", data_, "Test data: CSV with q, qd, qdd and tau columns")->required();
-    cmd->add_option("--json", json_, "Also write the errors as JSON (replaced atomically)");
+    cmd->add_option("--json", json_,
+                    "Also write the errors as JSON (replaced atomically; - for stdout)");
     cmd->footer(
         "nMSE of joint j is the mean squared error divided by the variance of the measured\n"
         "tau_j; 'all' is the RMS over every joint and sample and the mean nMSE of the joints.\n"
@@ -30,6 +31,7 @@ class EvaluateCommand : public Command {
 
   int Run() override {
     if (!json_.empty()) CheckOutputPath("--json", json_);
+    std::FILE* const text_out = TextStream({{"--json", json_}});
     const RobotModel model = LoadModel(model_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Predictions p = Predict(model, data);
@@ -50,12 +52,13 @@ class EvaluateCommand : public Command {
     doc["overall"] = {{"rms", e.overall_rms}, {"nmse", e.overall_nmse}};
     rows.push_back({"all", Format("%.4g", e.overall_rms), Format("%.4g", e.overall_nmse)});
 
-    std::printf("model  %s (%s)\ndata   %s: %d samples\n", ModelLabel(model.spec()).c_str(),
+    std::fprintf(text_out, "model  %s (%s)\ndata   %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());
-    std::fputs(Table(rows).c_str(), stdout);
+    std::fputs(Table(rows).c_str(), text_out);
     if (!json_.empty()) {
-      WriteOutputs({{"--json", json_, doc.dump(2) + "\n"}});
-      std::printf("wrote %s\n", json_.c_str());
+      const std::vector<OutputFile> outputs = {{"--json", json_, doc.dump(2) + "\n"}};
+      WriteOutputs(outputs);
+      PrintWritten(text_out, outputs);
     }
     return kExitOk;
   }

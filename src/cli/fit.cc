@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "commands.h"
 #include "common.h"
@@ -31,7 +32,11 @@ class FitCommand : public Command {
                     "cross-validation on a grid, pol/motor only) or fixed (defaults)")
         ->check(CLI::IsMember({"ml", "cv", "fixed"}))
         ->capture_default_str();
-    cmd->add_option("--out", out_, "Model file to write (replaced atomically)")->required();
+    cmd->add_option("--out", out_, "Model file to write (replaced atomically; - for stdout)")
+        ->required();
+    cmd->add_option("--json", json_,
+                    "Also write the summary as JSON: the fit's termination, evidence, starts, "
+                    "check, noise and coefficients (- for stdout)");
     cmd->add_option("--prior", prior_,
                     "--hyper ml: prior on the log hyper-parameters, centred on the defaults "
                     "from the data: gaussian, student_t, or none (plain maximum likelihood)")
@@ -79,6 +84,8 @@ class FitCommand : public Command {
 
   int Run() override {
     CheckOutputPath("--out", out_);  // before a long fit
+    if (!json_.empty()) CheckOutputPath("--json", json_);
+    std::FILE* const text_out = TextStream({{"--out", out_}, {"--json", json_}});
     const ModelSpec spec = ParseSpecFlags(model_, effects_);
     options_.method = ParseHyperMethod(hyper_);
     FromString(prior_, &options_.evidence.prior.family);  // checked by the flag
@@ -92,15 +99,16 @@ class FitCommand : public Command {
     options.rigid_body = LoadRobot(robot_);
     RobotModel model = MakeModel(spec, data.num_joints, options);
     const FitSummary summary = FitModel(data, options_, progress, &model);
-    const std::string text = ModelFileText(model);
-    std::fputs(FitSummaryText(model, data, summary).c_str(), stdout);
-    WriteOutputs({{"--out", out_, text}});
-    std::printf("wrote %s\n", out_.c_str());
+    std::vector<OutputFile> outputs = {{"--out", out_, ModelFileText(model)}};
+    if (!json_.empty()) outputs.push_back({"--json", json_, FitJson(model, data, summary)});
+    std::fputs(FitSummaryText(model, data, summary).c_str(), text_out);
+    WriteOutputs(outputs);
+    PrintWritten(text_out, outputs);
     return kExitOk;
   }
 
  private:
-  std::string data_, model_, effects_, hyper_ = "ml", out_, prior_ = "gaussian";
+  std::string data_, model_, effects_, hyper_ = "ml", out_, json_, prior_ = "gaussian";
   bool no_check_ = false;
   FitOptions options_;
   RobotFlags robot_;

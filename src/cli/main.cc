@@ -16,7 +16,10 @@
 
 #include "commands.h"
 #include "common.h"
+#include "structgp/core/version.h"
+#include "structgp/feature/effects.h"
 #include "structgp/io/data_error.h"
+#include "structgp/model/model_spec.h"
 
 namespace structgp {
 namespace cli {
@@ -27,6 +30,34 @@ int Fail(const std::string& context, const std::string& message, int code) {
   return code;
 }
 
+// One line per base model and per registered effect, from the library's lists (ModelSpec's
+// BaseModels, the effect registry), for the top-level --help.
+std::string ModelsAndEffectsHelp() {
+  auto pad = [](std::string s, size_t width) {
+    if (s.size() < width) s.append(width - s.size(), ' ');
+    return s;
+  };
+  std::string text = "Models (--model BASE or BASE+fri; +fri adds viscous, Coulomb and offset "
+                     "friction per joint):\n";
+  for (BaseModel base : BaseModels()) {
+    text += "  " + pad(ToString(base), 10) + Describe(base) + "\n";
+  }
+  text += "Effects (--effects NAME[@JOINTS][:KEY=VALUE;...], e.g. coulomb@2, "
+          "cogging@3:period=0.3):\n";
+  for (const std::string& name : EffectNames()) {
+    std::string line = "  " + pad(name, 10) + MakeEffectPrototype(name)->Describe();
+    std::string params;
+    for (const EffectParameter& p : EffectParameterInfo(name)) {
+      const std::string unit = p.unit.empty() ? std::string() : " " + p.unit;
+      params += (params.empty() ? "" : ", ") + p.name +
+                (p.required ? " (required" + (unit.empty() ? "" : "," + unit) + ")"
+                            : "=" + Format("%g", p.default_value) + unit);
+    }
+    text += line + (params.empty() ? "" : "; " + params) + "\n";
+  }
+  return text;
+}
+
 int Main(int argc, char** argv) {
   CLI::App app(
       "structgp: Gaussian processes with structured kernels for robot inverse dynamics.\n"
@@ -34,7 +65,11 @@ int Main(int argc, char** argv) {
       "physics it is missing (friction, cogging, offsets, drift).",
       "structgp");
   app.require_subcommand(1);
-  app.footer("Start with:  structgp demo\nEach subcommand has --help. Joints are 1-based.");
+  app.set_version_flag("--version", std::string("structgp ") + Version(),
+                       "Print the version and exit");
+  app.footer(ModelsAndEffectsHelp() +
+             "\nStart with:  structgp demo\nEach subcommand has --help. Joints are 1-based. "
+             "An output file given as - is written to stdout.");
   std::vector<std::unique_ptr<Command>> commands;
   commands.push_back(MakeDemoCommand());
   commands.push_back(MakeFitCommand());

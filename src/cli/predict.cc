@@ -24,7 +24,8 @@ class PredictCommand : public Command {
                     "States: CSV with q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN (tau is "
                     "required by the reader but not used), and t when the model uses time")
         ->required();
-    cmd->add_option("--out", out_, "Predictions CSV to write (replaced atomically)")->required();
+    cmd->add_option("--out", out_, "Predictions CSV to write (replaced atomically; - for stdout)")
+        ->required();
     cmd->add_flag("--components", components_,
                   "Also write each physical component of the mean (inertial, coriolis, "
                   "gravity, friction, each effect); weight-space pol/motor models only");
@@ -39,9 +40,9 @@ class PredictCommand : public Command {
 
   int Run() override {
     CheckOutputPath("--out", out_);
+    std::FILE* const text_out = TextStream({{"--out", out_}});
     const RobotModel model = LoadModel(model_);
-    if (components_ && model.regressor_map() == nullptr &&
-        (model.feature_map() == nullptr || model.gp().weight_space() == nullptr)) {
+    if (components_ && !model.has_components()) {
       throw UsageError("--components: needs a weight-space pol or motor model, or rbd or lag; '" + model_ +
                        "' is " + ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) +
                        " form");
@@ -70,25 +71,24 @@ class PredictCommand : public Command {
       values.col(offset + 2 * j + 1) = p.std.col(j);
     }
     if (components_) {
-      const Matrix X = ModelInputs(model, data);
-      std::vector<Component> parts;
+      std::vector<ComponentRows> parts;
+      try {
+        parts = model.PredictComponentRows(ModelInputs(model, data));
+      } catch (const std::runtime_error& e) {
+        if (dynamic_cast<const DataError*>(&e) != nullptr) throw;
+        throw NumericalError(std::string("components could not be computed: ") + e.what());
+      }
       const Eigen::Index begin = offset + 2 * static_cast<Eigen::Index>(N);
       const auto C = static_cast<Eigen::Index>(names.size());
-      for (Eigen::Index i = 0; i < m; ++i) {
-        const Vector x = X.row(i).transpose();
-        if (model.PredictComponents(x, &parts) != Status::kOk) {
-          throw NumericalError("components could not be computed at data row " +
-                               std::to_string(i + 1));
-        }
-        for (Eigen::Index c = 0; c < C; ++c) {
-          for (int j = 0; j < N; ++j)
-            values(i, begin + j * C + c) = parts[static_cast<size_t>(c)].mean[j];
+      for (Eigen::Index c = 0; c < C; ++c) {
+        for (int j = 0; j < N; ++j) {
+          values.col(begin + j * C + c) = parts[static_cast<size_t>(c)].mean.col(j);
         }
       }
     }
-    CheckOutputPath("--out", out_);
-    WriteCsvAtomically(out_, header, values, /*precision=*/0);
-    std::printf("wrote %s: %d rows, %d columns (%s)\n", out_.c_str(), static_cast<int>(m),
+    WriteOutputs({{"--out", out_, CsvText(header, values, /*precision=*/0)}});
+    if (IsStdout(out_)) return kExitOk;
+    std::fprintf(text_out, "wrote %s: %d rows, %d columns (%s)\n", out_.c_str(), static_cast<int>(m),
                 static_cast<int>(header.size()),
                 components_ ? "mean, std and components per joint" : "mean and std per joint");
     return kExitOk;

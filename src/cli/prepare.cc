@@ -52,7 +52,7 @@ class PrepareCommand : public Command {
         ->required();
     cmd->add_option("--out", out_,
                     "Data file to write: t, q1..qN (filtered), qd1..qdN, qdd1..qddN, tau1..tauN "
-                    "(replaced atomically)")
+                    "(replaced atomically; - for stdout)")
         ->required();
     cmd->add_option("--cutoff", options_.cutoff_hz,
                     "Low-pass cut-off frequency in Hz (default: 10 Hz, or a fifth of the "
@@ -93,6 +93,7 @@ class PrepareCommand : public Command {
 
   int Run() override {
     CheckOutputPath("--out", out_);
+    std::FILE* const text_out = TextStream({{"--out", out_}});
     const Progress progress("prepare", quiet_);
     progress.Line("reading " + in_);
     const RawLog log = ReadRawLogCsv(in_);
@@ -118,9 +119,10 @@ class PrepareCommand : public Command {
       throw UsageError(WithFlagNames(e.what()));
     }
     progress.Line("filtered and differentiated " + std::to_string(log.size()) + " samples");
-    WriteRobotCsv(out_, data);
-    std::printf(
-        "%s",
+    const std::vector<OutputFile> outputs = {{"--out", out_, RobotCsvText(data)}};
+    WriteOutputs(outputs);
+    std::fprintf(
+        text_out, "%s",
         Table(
             {{"joints", std::to_string(summary.num_joints)},
              {"samples written",
@@ -140,7 +142,7 @@ class PrepareCommand : public Command {
                             (summary.torque_filtered ? ", filtered" : "")}},
             0)
             .c_str());
-    std::printf("wrote %s\n", out_.c_str());
+    PrintWritten(text_out, outputs);
     return kExitOk;
   }
 

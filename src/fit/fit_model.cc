@@ -5,6 +5,7 @@
 #include <functional>
 #include <cmath>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -745,6 +746,85 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
     os << Table(coef, 4);
   }
   return os.str();
+}
+
+std::string ToJson(const RobotModel& model, const FitSummary& summary) {
+  using Json = nlohmann::ordered_json;
+  // JSON has no NaN or infinity: such a number is written as null.
+  auto number = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
+  Json j;
+  j["model"] = ModelLabel(model.spec());
+  j["num_joints"] = model.num_joints();
+  j["form"] = model.fitted() ? Json(ToString(model.gp().form())) : Json(nullptr);
+  if (model.regressor_map()) {
+    j["size"] = {{"parameters", model.regressor_map()->dim()}};
+  } else if (model.feature_map()) {
+    j["size"] = {{"features", model.feature_map()->dim()}};
+  } else {
+    j["size"] = Json::object();
+  }
+  Json s;
+  s["termination"] = ToString(summary.termination);
+  s["usable"] = summary.IsUsable();
+  s["message"] = summary.message;
+  s["method"] = ToString(summary.method);
+  s["method_description"] = summary.method_description;
+  s["notes"] = summary.notes;
+  s["warnings"] = summary.warnings;
+  s["iterations"] = summary.iterations;
+  s["num_evaluations"] = summary.num_evaluations;
+  s["initial_negative_log_evidence"] = number(summary.initial_negative_log_evidence);
+  s["final_negative_log_evidence"] = number(summary.final_negative_log_evidence);
+  s["final_negative_log_prior"] = number(summary.final_negative_log_prior);
+  s["at_bounds"] = summary.at_bounds;
+  s["starts"] = Json::array();
+  for (const MaximumLikelihoodStart& start : summary.starts) {
+    s["starts"].push_back({{"usable", start.usable},
+                           {"termination", ToString(start.termination)},
+                           {"iterations", start.iterations},
+                           {"num_evaluations", start.num_evaluations},
+                           {"negative_log_likelihood", number(start.negative_log_likelihood)},
+                           {"negative_log_prior", number(start.negative_log_prior)},
+                           {"objective", number(start.objective)}});
+  }
+  s["best_start"] = summary.best_start;
+  s["chosen_start"] = summary.chosen_start;
+  s["prior_tightenings"] = summary.prior_tightenings;
+  s["check"] = {{"ran", summary.check.ran},
+                {"passed", summary.check.passed},
+                {"rows", summary.check.rows},
+                {"worst_joint", summary.check.worst_joint},
+                {"worst_fraction", number(summary.check.worst_fraction)},
+                {"worst_confident_fraction", number(summary.check.worst_confident_fraction)},
+                {"worst_excursion", number(summary.check.worst_excursion)},
+                {"message", summary.check.message}};
+  s["cv_mean_nmse"] = number(summary.cv_mean_nmse);
+  s["cv_candidates"] = summary.cv_candidates;
+  s["rows"] = summary.rows;
+  s["hyperparameter_rows"] = summary.hyperparameter_rows;
+  s["model_rows"] = summary.model_rows;
+  s["hyperparameter_seconds"] = number(summary.hyperparameter_seconds);
+  s["total_seconds"] = number(summary.total_seconds);
+  j["summary"] = s;
+  if (summary.IsUsable() && model.fitted()) {
+    j["log_marginal_likelihood"] = number(model.gp().LogMarginalLikelihood());
+    const Hyperparameters& h = model.hyperparameters();
+    Json noise = Json::array();
+    for (int k = 0; k < model.num_joints(); ++k) {
+      noise.push_back(number(std::exp(h.log_noise_std + h.log_output_scale[k])));
+    }
+    j["noise_std"] = noise;
+    j["coefficients"] = Json::array();
+    const bool has_coefficients =
+        model.gp().weight_space() != nullptr || model.gp().regressor() != nullptr;
+    if (has_coefficients) {
+      for (const FeatureCoefficient& c : model.Coefficients()) {
+        j["coefficients"].push_back(
+            {{"name", c.name}, {"joint", c.joint}, {"value", number(c.value)}, {"std", number(c.std)}});
+      }
+    }
+  }
+  return j.dump(2) + "\n";
 }
 
 }  // namespace structgp

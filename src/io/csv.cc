@@ -380,20 +380,19 @@ std::vector<std::string> RobotCsvHeader(int num_joints, bool with_time) {
   return header;
 }
 
-void WriteCsvAtomically(const std::string& path, const std::vector<std::string>& header,
-                        const Eigen::MatrixXd& values, int precision) {
-  RequireSize("WriteCsvAtomically: header", static_cast<Eigen::Index>(header.size()),
-              values.cols(), "names (one per column of values)");
+std::string CsvText(const std::vector<std::string>& header, const Eigen::MatrixXd& values,
+                    int precision) {
+  RequireSize("CsvText: header", static_cast<Eigen::Index>(header.size()), values.cols(),
+              "names (one per column of values)");
   if (precision < 0 || precision > 17) {
-    throw std::invalid_argument("WriteCsvAtomically: expected a precision in 0..17, got " +
+    throw std::invalid_argument("CsvText: expected a precision in 0..17, got " +
                                 std::to_string(precision));
   }
   std::string contents;
   for (std::size_t c = 0; c < header.size(); ++c) {
     if (header[c].find_first_of(",\"\r\n") != std::string::npos) {
-      throw std::invalid_argument("WriteCsvAtomically: header name " + std::to_string(c + 1) +
-                                  " " + Quoted(header[c]) +
-                                  " contains ',', '\"' or a line break");
+      throw std::invalid_argument("CsvText: header name " + std::to_string(c + 1) + " " +
+                                  Quoted(header[c]) + " contains ',', '\"' or a line break");
     }
     if (c > 0) contents += ',';
     contents += header[c];
@@ -407,19 +406,24 @@ void WriteCsvAtomically(const std::string& path, const std::vector<std::string>&
     }
     contents += '\n';
   }
-  WriteTextAtomically(path, contents);
+  return contents;
 }
 
-void WriteRobotCsv(const std::string& path, const RobotData& data) {
+void WriteCsvAtomically(const std::string& path, const std::vector<std::string>& header,
+                        const Eigen::MatrixXd& values, int precision) {
+  WriteTextAtomically(path, CsvText(header, values, precision));
+}
+
+std::string RobotCsvText(const RobotData& data) {
   const int n = data.num_joints;
   if (n < 1) {
-    throw std::invalid_argument("WriteRobotCsv: expected num_joints >= 1, got " +
+    throw std::invalid_argument("RobotCsvText: expected num_joints >= 1, got " +
                                 std::to_string(n));
   }
-  RequireSize("WriteRobotCsv: X", data.X.cols(), 3 * n, "columns (3 x num_joints)");
-  RequireSize("WriteRobotCsv: Y", data.Y.cols(), n, "columns (num_joints)");
-  RequireSize("WriteRobotCsv: Y", data.Y.rows(), data.X.rows(), "rows (as X)");
-  if (data.has_time()) RequireSize("WriteRobotCsv: t", data.t.size(), data.X.rows(), "entries");
+  RequireSize("RobotCsvText: X", data.X.cols(), 3 * n, "columns (3 x num_joints)");
+  RequireSize("RobotCsvText: Y", data.Y.cols(), n, "columns (num_joints)");
+  RequireSize("RobotCsvText: Y", data.Y.rows(), data.X.rows(), "rows (as X)");
+  if (data.has_time()) RequireSize("RobotCsvText: t", data.t.size(), data.X.rows(), "entries");
   const int offset = data.has_time() ? 1 : 0;
   Eigen::MatrixXd values(data.X.rows(), offset + 4 * n);
   if (data.has_time()) values.col(0) = data.t;
@@ -429,7 +433,11 @@ void WriteRobotCsv(const std::string& path, const RobotData& data) {
   if (data.target == RobotData::Target::kCurrent) {
     for (int j = 0; j < n; ++j) header[header.size() - n + j] = CanonicalName(3, j + 1, true);
   }
-  WriteCsvAtomically(path, header, values, 17);
+  return CsvText(header, values, 17);
+}
+
+void WriteRobotCsv(const std::string& path, const RobotData& data) {
+  WriteTextAtomically(path, RobotCsvText(data));
 }
 
 }  // namespace structgp

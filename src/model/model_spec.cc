@@ -55,6 +55,28 @@ const char* ToString(BaseModel base) {
   return "unknown";
 }
 
+const std::vector<BaseModel>& BaseModels() {
+  static const std::vector<BaseModel> kAll = {BaseModel::kPol,   BaseModel::kRbf,
+                                              BaseModel::kRbfs,  BaseModel::kMotor,
+                                              BaseModel::kRbd,   BaseModel::kLag};
+  return kAll;
+}
+
+const char* Describe(BaseModel base) {
+  switch (base) {
+    case BaseModel::kPol:
+      return "the structured kernel k_pol of the rigid-body dynamics (no robot parameters needed)";
+    case BaseModel::kRbf: return "squared-exponential kernel on (q, qd, qdd)";
+    case BaseModel::kRbfs: return "squared-exponential kernel on (cos q, sin q, qd, qdd)";
+    case BaseModel::kMotor: return "the linear motor model c1 qdd + c2 qd per joint";
+    case BaseModel::kRbd:
+      return "the rigid-body regressor of a URDF chain, inertial parameters identified (--urdf)";
+    case BaseModel::kLag:
+      return "a Lagrangian regressor of a serial chain, kinematics unknown (up to 4 joints)";
+  }
+  return "unknown";
+}
+
 ModelSpec ParseModelSpec(const std::string& model) {
   const std::string text = Trim(model);
   ModelSpec spec;
@@ -90,9 +112,9 @@ ModelSpec ParseModelSpec(const std::string& model) {
     spec.friction = true;
   }
   bool found = false;
-  for (BaseModel b :
-       {BaseModel::kPol, BaseModel::kRbf, BaseModel::kRbfs, BaseModel::kMotor, BaseModel::kRbd,
-        BaseModel::kLag}) {
+  std::string names;
+  for (BaseModel b : BaseModels()) {
+    names += (names.empty() ? "" : ", ") + std::string(ToString(b));
     if (base == ToString(b)) {
       spec.base = b;
       found = true;
@@ -100,10 +122,38 @@ ModelSpec ParseModelSpec(const std::string& model) {
   }
   if (!found) {
     throw std::invalid_argument("model '" + model + "': unknown base '" + base +
-                                "' (expected one of pol, rbf, rbfs, motor, rbd, lag, or rbd+pol, "
-                                "rbd+rbf, rbd+rbfs, rbd+motor; each optionally +fri)");
+                                "' (expected one of " + names +
+                                ", or rbd+pol, rbd+rbf, rbd+rbfs, rbd+motor; each optionally +fri)");
   }
   return spec;
+}
+
+ModelSpec ParseModelLabel(const std::string& text) {
+  // base ["+" "fri"] ["+" effect list]: "fri" counts only as a whole item, so an effect whose
+  // name starts with "fri" still reads as an effect.
+  const auto first = text.find('+');
+  if (first == std::string::npos) return ParseModelSpec(text);
+  std::string model = text.substr(0, first);
+  std::string rest = text.substr(first + 1);
+  const std::string head = Trim(rest.substr(0, rest.find('+')));
+  if (head == "fri") {
+    model = text.substr(0, first) + "+fri";
+    const auto second = rest.find('+');
+    rest = second == std::string::npos ? std::string() : rest.substr(second + 1);
+    if (second != std::string::npos && Trim(rest).empty()) {
+      throw std::invalid_argument("model '" + text + "': '+' must be followed by effects, e.g. coulomb@2");
+    }
+  } else if (Trim(rest).empty()) {
+    throw std::invalid_argument("model '" + text +
+                                "': '+' must be followed by 'fri' or effects, e.g. coulomb@2");
+  }
+  ModelSpec spec = ParseModelSpec(model);
+  spec.effects = ParseEffectList(Trim(rest));
+  return spec;
+}
+
+std::string ModelLabel(const ModelSpec& spec) {
+  return ToString(spec) + (spec.effects.empty() ? "" : " + " + ToString(spec.effects));
 }
 
 std::vector<EffectSpec> ParseEffectList(const std::string& text) {

@@ -517,30 +517,105 @@ std::pair<double, double> RobotModel::Coefficient(const std::string& feature, in
     throw std::invalid_argument("Coefficient: joint " + std::to_string(joint) +
                                 " out of range 1.." + std::to_string(num_joints_));
   }
-  if (gp_ && gp_->regressor() != nullptr) {
-    // Shared parameters: the name says which joint a friction or effect column acts on.
-    for (const auto& [name, index] : parametric_names_) {
-      if (name == feature) {
-        const RegressorGP& gp = *gp_->regressor();
-        const Matrix covariance = gp.ParameterCovariance();
-        return {gp.parameters()[index], std::sqrt(std::max(0.0, covariance(index, index)))};
-      }
-    }
-    throw std::invalid_argument("Coefficient: the model has no feature '" + feature + "'");
-  }
-  if (!gp_ || gp_->weight_space() == nullptr) {
+  if (!gp_ || (gp_->regressor() == nullptr && gp_->weight_space() == nullptr)) {
     throw std::invalid_argument("Coefficient: needs a fitted weight-space model");
   }
   for (const auto& [name, index] : parametric_names_) {
-    if (name == feature) {
-      const WeightSpaceGP& ws = *gp_->weight_space();
-      const double value = ws.weights()(index, joint - 1);
-      const double var = ws.covariance_factor().row(index).squaredNorm() * ws.noise_variance() *
-                         ws.output_scales()[joint - 1] * ws.output_scales()[joint - 1];
-      return {value, std::sqrt(var)};
-    }
+    if (name == feature) return CoefficientAt(index, joint);
   }
   throw std::invalid_argument("Coefficient: the model has no feature '" + feature + "'");
+}
+
+std::pair<double, double> RobotModel::CoefficientAt(int index, int joint) const {
+  if (gp_->regressor() != nullptr) {
+    // Shared parameters: the name says which joint a friction or effect column acts on.
+    const RegressorGP& gp = *gp_->regressor();
+    const Matrix covariance = gp.ParameterCovariance();
+    return {gp.parameters()[index], std::sqrt(std::max(0.0, covariance(index, index)))};
+  }
+  const WeightSpaceGP& ws = *gp_->weight_space();
+  const double value = ws.weights()(index, joint - 1);
+  const double var = ws.covariance_factor().row(index).squaredNorm() * ws.noise_variance() *
+                     ws.output_scales()[joint - 1] * ws.output_scales()[joint - 1];
+  return {value, std::sqrt(var)};
+}
+
+namespace {
+
+// The joint (1-based) of a feature named "<basis>@<joint>" (FrictionFeatureMap, EffectFeatureMap,
+// SemiParametricRegressorMap name them so); 0 without a joint suffix.
+int FeatureJoint(const std::string& name) {
+  const auto at = name.rfind('@');
+  if (at == std::string::npos || at + 1 == name.size()) return 0;
+  int joint = 0;
+  for (size_t i = at + 1; i < name.size(); ++i) {
+    if (name[i] < '0' || name[i] > '9' || joint > 100000) return 0;
+    joint = 10 * joint + (name[i] - '0');
+  }
+  return joint;
+}
+
+}  // namespace
+
+bool RobotModel::has_components() const {
+  if (!gp_) return false;
+  if (regressor_) return gp_->regressor() != nullptr;
+  return map_ != nullptr && gp_->weight_space() != nullptr;
+}
+
+std::vector<ComponentRows> RobotModel::PredictComponentRows(const ConstMatrixRef& X) const {
+  RequireSize("RobotModel::PredictComponentRows X", X.cols(), input_dim(), "columns");
+  RequireFinite("RobotModel::PredictComponentRows X", X);
+  if (!has_components()) {
+    throw std::invalid_argument(
+        "RobotModel::PredictComponentRows: components need a fitted weight-space pol or motor "
+        "model, or rbd or lag; this is " + ModelLabel(spec_) +
+        (gp_ ? std::string(" in ") + ToString(gp_->form()) + " form" : std::string(", not fitted")));
+  }
+  const std::vector<std::string> names = ComponentNames();
+  const Eigen::Index m = X.rows();
+  std::vector<ComponentRows> rows(names.size());
+  for (size_t c = 0; c < names.size(); ++c) {
+    rows[c].name = names[c];
+    rows[c].mean.resize(m, num_joints_);
+    rows[c].latent_std.resize(m, num_joints_);
+  }
+  std::vector<Component> parts;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const Status s = PredictComponents(X.row(i).transpose(), &parts);
+    if (s != Status::kOk) {
+      throw std::runtime_error("RobotModel::PredictComponentRows: row " + std::to_string(i) +
+                               ": " + ToString(s));
+    }
+    for (size_t c = 0; c < rows.size(); ++c) {
+      rows[c].mean.row(i) = parts[c].mean.transpose();
+      rows[c].latent_std.row(i) = parts[c].latent_variance.cwiseMax(0.0).cwiseSqrt().transpose();
+    }
+  }
+  return rows;
+}
+
+std::vector<FeatureCoefficient> RobotModel::Coefficients() const {
+  if (parametric_names_.empty()) return {};
+  const bool regressor = gp_ && gp_->regressor() != nullptr;
+  if (!regressor && (!gp_ || gp_->weight_space() == nullptr)) {
+    throw std::invalid_argument("RobotModel::Coefficients: needs a fitted weight-space or rbd/lag "
+                                "model; this is " + ModelLabel(spec_) +
+                                (gp_ ? std::string(" in ") + ToString(gp_->form()) + " form"
+                                     : std::string(", not fitted")));
+  }
+  std::vector<FeatureCoefficient> out;
+  for (const auto& [name, index] : parametric_names_) {
+    const int joint = FeatureJoint(name);
+    const int first = joint > 0 ? joint : 1;
+    const int last = joint > 0 ? joint : (regressor ? 1 : num_joints_);
+    if (joint > num_joints_) continue;  // not a joint suffix of this robot
+    for (int j = first; j <= last; ++j) {
+      const auto [value, std] = CoefficientAt(index, j);
+      out.push_back({name, joint > 0 || !regressor ? j : 0, value, std});
+    }
+  }
+  return out;
 }
 
 std::vector<std::string> RobotModel::ParametricFeatureNames() const {

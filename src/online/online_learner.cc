@@ -12,7 +12,10 @@
 
 #include <Eigen/Cholesky>
 
+#include "model/factor_kernels.h"
 #include "online/learner_form.h"
+#include "structgp/feature/feature_hyperparameters.h"
+#include "structgp/model/model_spec.h"
 #include "structgp/online/triple_buffer.h"
 
 namespace structgp {
@@ -716,6 +719,27 @@ const OnlineLearnerOptions& Validated(const OnlineLearnerOptions& options) {
   return options;
 }
 }  // namespace
+
+OnlineLearnerOptions OnlineLearnerOptionsFor(const RobotModel& model) {
+  if (!model.fitted() || model.feature_map() == nullptr) {
+    throw std::invalid_argument(
+        "OnlineLearnerOptionsFor: needs a fitted model with a feature map (pol up to 3 joints, "
+        "motor); " + ModelLabel(model.spec()) + (model.fitted() ? " has none" : " is not fitted"));
+  }
+  if (model.prior_mean()) {
+    throw std::invalid_argument("OnlineLearnerOptionsFor: " + ModelLabel(model.spec()) +
+                                " has a prior mean (the URDF's torques), which the learner does "
+                                "not add; Replay (online/replay.h) handles it");
+  }
+  const Hyperparameters& h = model.hyperparameters();
+  OnlineLearnerOptions o;
+  o.feature_map = model.feature_map();
+  o.num_outputs = model.num_joints();
+  o.prior_variance = PriorVariance(*model.feature_map(), h);
+  o.noise_variance = h.noise_variance();
+  o.output_scales = h.output_scales();
+  return o;
+}
 
 OnlineLearner::OnlineLearner(const OnlineLearnerOptions& options)
     : impl_(std::make_unique<Impl>(Validated(options))) {

@@ -145,5 +145,15 @@ TorqueComponents SimulateComponents(const Robot& robot, const Trajectory& trajec
   return components;
 }
 
+RobotData ToRobotData(const Dataset& dataset, const std::string& source) {
+  RobotData out;
+  out.num_joints = dataset.num_joints();
+  out.X = dataset.X;
+  out.Y = dataset.Y * dataset.torque_scale.asDiagonal();
+  out.t = dataset.t;
+  out.source = source;
+  return out;
+}
+
 }  // namespace sim
 }  // namespace structgp

@@ -233,6 +233,13 @@ Matrix ModelInputs(const RobotModel& model, const ConstMatrixRef& states, const 
 /// the log evidence and the friction and effect coefficients with their posterior std.
 std::string FitReport(const RobotModel& model, const FitSummary& summary);
 
+/// The same as JSON (`structgp fit --json`): {"model", "num_joints", "form", "size",
+/// "summary": every field of FitSummary (enums as their ToString words, each start's
+/// termination, iterations and objective, the held-out check), and when the fit is usable
+/// "log_marginal_likelihood", "noise_std" (per joint) and "coefficients" (RobotModel::
+/// Coefficients: name, joint, value, std)}. Numbers that are not finite are written as null.
+std::string ToJson(const RobotModel& model, const FitSummary& summary);
+
 }  // namespace structgp
 
 #endif  // STRUCTGP_FIT_FIT_MODEL_H_

@@ -49,16 +49,22 @@ RobotData ReadRobotCsv(const std::string& path, const CsvOptions& options = {});
 /// q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN.
 std::vector<std::string> RobotCsvHeader(int num_joints, bool with_time);
 
-/// Writes a CSV file atomically (see WriteTextAtomically): one header row, then one row per
-/// row of `values`, each number written with `precision` significant digits
-/// (1..17; 17 reads back exactly) or, when `precision` is 0, with the fewest digits that
-/// read back exactly. NaN and Inf are written as "nan", "inf", "-inf".
-///
-/// Throws std::invalid_argument when header.size() != values.cols(), when a name contains
-/// ',', '"' or a line break, or when `precision` is outside 0..17; DataError when the file
-/// cannot be written (the previous file, if any, is then left untouched).
+/// The text of a CSV file: one header row, then one row per row of `values`, each number
+/// written with `precision` significant digits (1..17; 17 reads back exactly) or, when
+/// `precision` is 0, with the fewest digits that read back exactly. NaN and Inf are written as
+/// "nan", "inf", "-inf". Throws std::invalid_argument when header.size() != values.cols(),
+/// when a name contains ',', '"' or a line break, or when `precision` is outside 0..17.
+std::string CsvText(const std::vector<std::string>& header, const Eigen::MatrixXd& values,
+                    int precision = 17);
+
+/// Writes CsvText(header, values, precision) atomically (see WriteTextAtomically). Throws as
+/// CsvText, and DataError when the file cannot be written (the previous file, if any, is then
+/// left untouched).
 void WriteCsvAtomically(const std::string& path, const std::vector<std::string>& header,
                         const Eigen::MatrixXd& values, int precision = 17);
+
+/// The text WriteRobotCsv writes (throws as it does, but never DataError).
+std::string RobotCsvText(const RobotData& data);
 
 /// Writes `data` atomically with the canonical header (RobotCsvHeader; cur1..curN for currents)
 /// and 17 significant

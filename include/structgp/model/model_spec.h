@@ -28,6 +28,11 @@ enum class BaseModel {
 
 /// "pol", "rbf", "rbfs", "motor", "rbd", "lag".
 const char* ToString(BaseModel base);
+/// Every base model, in the order above: the one list that parsers, messages and help texts
+/// take their names from.
+const std::vector<BaseModel>& BaseModels();
+/// One line on what the base model is, for help texts ("the structured kernel k_pol ...").
+const char* Describe(BaseModel base);
 
 /// An effect as written: MakeEffect(name, params) builds it (feature/effects.h), checking the
 /// parameters against the effect's typed descriptions (EffectParameter) and filling in the
@@ -56,6 +61,15 @@ ModelSpec ParseModelSpec(const std::string& model);
 /// position (1-based), e.g. "effect list 'cogging@1:period=-1', character 1: effect 'cogging':
 /// parameter 'period' expected in [1e-06, 1e+06] rad, got -1".
 std::vector<EffectSpec> ParseEffectList(const std::string& text);
+
+/// A model with its effects in one text, as ModelLabel writes it: "pol+fri + coulomb@2,viscous@1",
+/// "pol+coulomb@2", "lag+fri+cogging@1:period=0.3". The base and "+fri" as ParseModelSpec
+/// reads them, then, after the next '+', the rest as one effect list (ParseEffectList; an
+/// effect name never contains '+', so the effect list may hold numbers such as 1e+3). Throws
+/// std::invalid_argument as the two parsers do.
+ModelSpec ParseModelLabel(const std::string& text);
+/// "pol+fri", or "pol+fri + coulomb@2,viscous@1" with effects; ParseModelLabel reads it back.
+std::string ModelLabel(const ModelSpec& spec);
 
 /// Canonical text of a model ("pol+fri") and of an effect list (round-trips through the
 /// parsers).

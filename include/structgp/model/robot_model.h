@@ -80,6 +80,23 @@ struct Component {
   Vector latent_variance; ///< per joint (N)
 };
 
+/// One physical part of the predictions for many rows (RobotModel::PredictComponentRows).
+struct ComponentRows {
+  std::string name;  ///< as in Component
+  Matrix mean;       ///< m x N
+  Matrix latent_std; ///< m x N: the posterior standard deviation of this part alone
+};
+
+/// A fitted friction or effect coefficient (RobotModel::Coefficients).
+struct FeatureCoefficient {
+  std::string name;  ///< the feature, as in ParametricFeatureNames() ("coulomb@2", "offset")
+  /// The joint torque (1-based) the coefficient belongs to; 0 for a parameter shared by every
+  /// joint (rbd/lag: a feature without "@j", e.g. the one "offset" effect).
+  int joint = 0;
+  double value = 0.0;  ///< posterior mean, in torque units (N m) per unit of the basis
+  double std = 0.0;    ///< posterior standard deviation
+};
+
 /// Everything a fitted RobotModel's later results depend on (RobotModel::State), so that
 /// RobotModel::FromState restores it exactly: the same predictions, components, evidence and
 /// online updates, bit for bit (the function-space form refits its stored points in one batch:
@@ -189,11 +206,20 @@ class RobotModel {
   /// One workspace for all rows (allocates).
   void PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std = nullptr) const;
 
+  /// True when the fitted model splits its predictions into components: a weight-space
+  /// feature-map model (pol, motor), or rbd/lag.
+  bool has_components() const;
   /// Names of the physical components, in order (weight-space feature-map models only).
   std::vector<std::string> ComponentNames() const;
   /// Splits the prediction at x into components (their means add up to the full mean).
   /// Weight-space feature-map models only: otherwise returns kInvalidInput.
   Status PredictComponents(const ConstVectorRef& x, std::vector<Component>* components) const;
+
+  /// PredictComponents for every row of X (m x input_dim()), one entry per component, in
+  /// ComponentNames() order. Throws std::invalid_argument on bad sizes, NaN/Inf or a model
+  /// without components (has_components() false), std::runtime_error naming the row when a
+  /// prediction fails numerically (as PredictRows). Allocates.
+  std::vector<ComponentRows> PredictComponentRows(const ConstMatrixRef& X) const;
 
   /// Fitted coefficient of a named feature (e.g. "coulomb@2", "viscous@1") for joint `joint`
   /// (1-based), with its posterior standard deviation. Weight space only; throws when the
@@ -201,6 +227,12 @@ class RobotModel {
   std::pair<double, double> Coefficient(const std::string& feature, int joint) const;
   /// Names of all features that have a physical meaning (friction and effect bases).
   std::vector<std::string> ParametricFeatureNames() const;
+  /// Every friction and effect coefficient with its posterior std, in ParametricFeatureNames()
+  /// order: a feature of joint j ("coulomb@2", "cogging.sin@3") on joint j's torque; a feature
+  /// of every joint ("offset") once per joint torque in weight space, once (joint 0) as the
+  /// shared parameter of rbd/lag. Empty for a model without such features (rbf, rbfs, pol
+  /// beyond its explicit map). Throws std::invalid_argument when the model is not fitted.
+  std::vector<FeatureCoefficient> Coefficients() const;
 
  private:
   struct Part {
@@ -208,6 +240,8 @@ class RobotModel {
     int begin;
     int size;
   };
+  // Coefficient of parameter `index` on joint `joint`'s torque (1-based), with its std.
+  std::pair<double, double> CoefficientAt(int index, int joint) const;
   void BuildFeatureMap();
   void BuildKernel();
   void BuildRegressor();

@@ -74,6 +74,7 @@
 #include "structgp/feature/feature_map.h"
 #include "structgp/feature/regressor_map.h"
 #include "structgp/model/regressor_gp.h"
+#include "structgp/model/robot_model.h"
 #include "structgp/model/weight_space_gp.h"
 
 namespace structgp {
@@ -166,6 +167,13 @@ struct OnlineLearnerOptions {
   /// null) naming the field, what was expected and what was found.
   bool IsValid(std::string* error) const;
 };
+
+/// Options of a learner that starts from the prior of a fitted RobotModel: its feature map,
+/// with the prior variances, noise level and output scales of the model's hyper-parameters,
+/// learning from no data (the model's form, learned again online). Every other option at its
+/// default. Throws std::invalid_argument when the model is not fitted or has no feature map
+/// (rbf, rbfs, rbd, lag, pol beyond its explicit map).
+OnlineLearnerOptions OnlineLearnerOptionsFor(const RobotModel& model);
 
 /// Counters of an OnlineLearner. Each field is exact; fields written by different threads are
 /// read one by one, so a summary taken while the learner runs is a near-simultaneous sample.

@@ -11,9 +11,11 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include <Eigen/Core>
 
+#include "structgp/io/robot_data.h"
 #include "structgp/sim/friction.h"
 #include "structgp/sim/robot.h"
 #include "structgp/sim/trajectory.h"
@@ -79,6 +81,10 @@ struct TorqueComponents {
 /// robot.num_joints() joints, or on a negative noise_std.
 Dataset Simulate(const Robot& robot, const Trajectory& trajectory,
                  const SimulationOptions& options = SimulationOptions());
+
+/// The data set as robot data in N m (Y's columns multiplied back by torque_scale), with its
+/// times, as if read from `source` (which only names it in messages).
+RobotData ToRobotData(const Dataset& dataset, const std::string& source = "");
 
 /// The noise-free terms of the same torques, scaled exactly as Simulate scales them with the
 /// same options (options.noise_std and options.seed are not used).

@@ -1,0 +1,100 @@
+"""The module and the structgp program give the same results on the same data and model file:
+predictions (to 1e-10), components, a fit of the same spec, and the diagnosis."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import structgp
+from conftest import run
+
+
+def read_columns(path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    header, values = rows[0], np.array(rows[1:], dtype=float)
+    return {name: values[:, k] for k, name in enumerate(header)}
+
+
+@pytest.fixture(scope="module")
+def cli_model(cli, demo, tmp_path_factory):
+    """pol+fri + coulomb@2 fitted by `structgp fit` on the slow log."""
+    path = tmp_path_factory.mktemp("cli") / "model.json"
+    run(cli, "fit", "--data", demo / "train.csv", "--model", "pol+fri", "--effects", "coulomb@2",
+        "--out", path, "--quiet")
+    return path
+
+
+def test_predictions_equal_the_programs_on_its_model_file(cli, demo, cli_model, tmp_path):
+    pred = tmp_path / "pred.csv"
+    run(cli, "predict", "--model", cli_model, "--data", demo / "test.csv", "--out", pred,
+        "--components")
+    columns = read_columns(pred)
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model.load(str(cli_model))
+    mean, std = model.predict(test.X, return_std=True)
+    assert mean.shape == (1000, 2) and std.shape == (1000, 2)
+    for j in range(2):
+        np.testing.assert_allclose(mean[:, j], columns[f"tau{j + 1}_mean"], rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(std[:, j], columns[f"tau{j + 1}_std"], rtol=1e-10, atol=1e-10)
+    parts = model.components(test.X)
+    assert list(parts) == model.component_names
+    for name, (part_mean, part_std) in parts.items():
+        assert part_mean.shape == part_std.shape == (1000, 2)
+        for j in range(2):
+            np.testing.assert_allclose(part_mean[:, j], columns[f"tau{j + 1}_{name}"],
+                                       rtol=1e-10, atol=1e-10)
+
+
+def test_components_add_up_to_the_prediction(demo, cli_model):
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model.load(str(cli_model))
+    mean = model.predict(test.X)
+    parts = model.components(test.X)
+    assert {"inertial", "coriolis", "gravity", "friction"} <= set(parts)
+    total = sum(part_mean for part_mean, _ in parts.values())
+    np.testing.assert_allclose(total, mean, rtol=0, atol=1e-12 * np.abs(mean).max())
+    # Each part is uncertain by less than the whole prior, and by something.
+    for name, (_, part_std) in parts.items():
+        assert np.all(part_std >= 0) and np.all(np.isfinite(part_std)), name
+
+
+def test_a_fit_from_python_is_the_programs_fit(demo, cli_model):
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model(base="pol", friction=True, effects=["coulomb@2"])
+    assert model.fit(train.X, train.Y, train.t) is model
+    reference = structgp.Model.load(str(cli_model))
+    np.testing.assert_allclose(model.predict(test.X), reference.predict(test.X),
+                               rtol=1e-10, atol=1e-10)
+    assert model.log_marginal_likelihood == pytest.approx(reference.log_marginal_likelihood,
+                                                          rel=1e-12)
+    summary = model.summary
+    assert summary.usable and summary.method == "ml" and summary.rows == 4000
+    assert summary.termination in ("converged", "max_iterations", "line_search_failed")
+    assert len(summary.starts) == 3
+    assert summary.to_dict()["summary"]["termination"] == summary.termination
+
+
+def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
+    findings = tmp_path / "findings.json"
+    run(cli, "diagnose", "--model", demo / "model_before.json", "--data", demo / "train.csv",
+        "--json", findings)
+    expected = json.loads(findings.read_text())
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    model = structgp.Model.load(str(demo / "model_before.json"))
+    report = tmp_path / "report.html"
+    diagnosis = structgp.diagnose(model, train.X, train.Y, train.t, report=str(report))
+    assert diagnosis.to_dict() == expected
+    assert json.loads(diagnosis.to_json()) == expected
+    assert "<html" in report.read_text()
+    # The objects carry the same numbers.
+    assert [s.spec for s in diagnosis.suggestions] == [s["spec"] for s in expected["suggestions"]]
+    first = diagnosis.suggestions[0]
+    assert (first.effect, first.joint) == ("coulomb", 2)
+    assert first.score == expected["suggestions"][0]["score"]
+    assert [f.rms for f in diagnosis.joints] == [f["rms"] for f in expected["joints"]]
+    assert "missing Coulomb friction" in str(diagnosis)
+    assert structgp.parse_model(diagnosis.suggested_model) == "pol + coulomb@2:width=0.01"

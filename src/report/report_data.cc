@@ -1,0 +1,89 @@
+#include "structgp/report/report_data.h"
+
+#include <cmath>
+
+#include "structgp/fit/fit_model.h"
+
+namespace structgp {
+namespace report {
+
+ModelPredictions Predict(const RobotModel& model, const RobotData& data) {
+  ModelPredictions p;
+  p.label = ModelLabel(model.spec());
+  model.PredictRows(ModelInputs(model, data.X, data.t), &p.mean, &p.std);
+  return p;
+}
+
+PredictionErrors ComputeErrors(const Matrix& predicted, const Matrix& measured) {
+  const Eigen::Index m = measured.rows();
+  const Eigen::Index N = measured.cols();
+  PredictionErrors e;
+  e.rms.resize(N);
+  e.nmse.resize(N);
+  double total = 0.0;
+  for (Eigen::Index j = 0; j < N; ++j) {
+    const double sse = (predicted.col(j) - measured.col(j)).squaredNorm();
+    const double mean = measured.col(j).mean();
+    const double var = (measured.col(j).array() - mean).square().sum() / static_cast<double>(m);
+    e.rms[j] = std::sqrt(sse / static_cast<double>(m));
+    e.nmse[j] = var > 0.0 ? sse / static_cast<double>(m) / var : HUGE_VAL;
+    total += sse;
+  }
+  e.overall_rms = std::sqrt(total / static_cast<double>(m * N));
+  e.overall_nmse = e.nmse.mean();
+  return e;
+}
+
+ModelErrors ToModelErrors(const std::string& label, const PredictionErrors& errors) {
+  auto values = [](const Vector& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+  return ModelErrors{label, values(errors.rms), values(errors.nmse)};
+}
+
+std::vector<JointData> JointSeries(const RobotData& data,
+                                   const std::vector<ModelPredictions>& models) {
+  const int N = data.num_joints;
+  const Eigen::Index m = data.size();
+  auto column = [m](const auto& a, Eigen::Index c) {
+    std::vector<double> v(static_cast<size_t>(m));
+    for (Eigen::Index i = 0; i < m; ++i) v[static_cast<size_t>(i)] = a(i, c);
+    return v;
+  };
+  std::vector<JointData> joints;
+  for (int j = 0; j < N; ++j) {
+    JointData jd;
+    jd.joint = j + 1;
+    jd.t.resize(static_cast<size_t>(m));
+    for (Eigen::Index i = 0; i < m; ++i) {
+      jd.t[static_cast<size_t>(i)] = data.has_time() ? data.t[i] : static_cast<double>(i);
+    }
+    jd.q = column(data.X, j);
+    jd.qd = column(data.X, N + j);
+    jd.measured = column(data.Y, j);
+    for (const ModelPredictions& p : models) {
+      PredictionSeries s;
+      s.label = p.label;
+      s.mean = column(p.mean, j);
+      s.std = column(p.std, j);
+      jd.predictions.push_back(std::move(s));
+    }
+    joints.push_back(std::move(jd));
+  }
+  return joints;
+}
+
+ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
+                               const Diagnosis& diagnosis) {
+  const ModelPredictions p = Predict(model, data);
+  ReportData r;
+  r.title = "structgp diagnosis: " + p.label + " on " +
+            (data.source.empty() ? std::string("the data") : data.source);
+  r.data_source = data.source;
+  r.joints = JointSeries(data, {p});
+  r.has_diagnosis = true;
+  r.diagnosis = diagnosis;
+  r.errors.push_back(ToModelErrors(p.label, ComputeErrors(p.mean, data.Y)));
+  return r;
+}
+
+}  // namespace report
+}  // namespace structgp
