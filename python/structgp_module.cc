@@ -527,6 +527,10 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("rms", &JointFinding::rms)
       .def_readonly("nmse", &JointFinding::nmse)
       .def_readonly("noise_std_estimate", &JointFinding::noise_std_estimate)
+      .def_readonly("refit_rms", &JointFinding::refit_rms,
+                    "residual RMS of the model refitted on the diagnosed data")
+      .def_readonly("outside_fraction", &JointFinding::outside_fraction)
+      .def_readonly("max_distance", &JointFinding::max_distance)
       .def_readonly("concentrations", &JointFinding::concentrations)
       .def("__repr__", [](const JointFinding& f) {
         return "JointFinding(joint " + std::to_string(f.joint) + ", rms " + std::to_string(f.rms) + ")";
@@ -539,6 +543,17 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("rms_after", &Suggestion::rms_after)
       .def_readonly("residual_rms_before", &Suggestion::residual_rms_before)
       .def_readonly("residual_rms_after", &Suggestion::residual_rms_after)
+      .def_readonly("score_uncorrected", &Suggestion::score_uncorrected)
+      .def_readonly("inflation", &Suggestion::inflation)
+      .def_readonly("effective_samples", &Suggestion::effective_samples)
+      .def_readonly("p_value", &Suggestion::p_value)
+      .def_readonly("adjusted_p_value", &Suggestion::adjusted_p_value)
+      .def_readonly("effect_rms", &Suggestion::effect_rms)
+      .def_readonly("effect_to_noise", &Suggestion::effect_to_noise)
+      .def_readonly("z", &Suggestion::z)
+      .def_readonly("confirmation", &Suggestion::confirmation)
+      .def_readonly("folds_improved", &Suggestion::folds_improved)
+      .def_readonly("selection", &Suggestion::selection)
       .def_readonly("params", &Suggestion::params)
       .def_readonly("spec", &Suggestion::spec, "the text to add to the effects, e.g. 'coulomb@2'")
       .def_property_readonly("description", &DescribeEffect)
@@ -554,6 +569,10 @@ void BindDiagnosis(py::module_& m) {
       .def_property_readonly("model", [](const DiagnosisResult& d) { return d.diagnosis.model; })
       .def_property_readonly("features", [](const DiagnosisResult& d) { return d.diagnosis.features; })
       .def_property_readonly("noise_std", [](const DiagnosisResult& d) { return d.diagnosis.noise_std; })
+      .def_property_readonly("verdict", [](const DiagnosisResult& d) { return ToString(d.diagnosis.coverage.verdict); },
+                             "'explained', 'coverage', 'missing_effect' or 'unexplained'")
+      .def_property_readonly("verdict_message", [](const DiagnosisResult& d) { return d.diagnosis.coverage.message; })
+      .def_property_readonly("coverage_joints", [](const DiagnosisResult& d) { return d.diagnosis.coverage.coverage_joints; })
       .def_property_readonly("suggested_model",
                              [](const DiagnosisResult& d) { return ModelLabel(WithSuggestions(d.spec, d.diagnosis)); },
                              "The diagnosed model with every suggestion added, as Model() reads it")
@@ -571,7 +590,7 @@ void BindDiagnosis(py::module_& m) {
       "diagnose",
       [](const Model& model, const py::object& X, const py::object& Y, const py::object& t,
          const py::object& report, int folds, double min_evidence,
-         const std::vector<std::string>& candidates) {
+         const std::vector<std::string>& candidates, double significance, const py::object& train) {
         const std::shared_ptr<const RobotModel> held = model.shared("diagnose");
         const RobotModel& fitted = *held;
         RobotData data;
@@ -585,6 +604,21 @@ void BindDiagnosis(py::module_& m) {
         result.options.folds = folds;
         result.options.min_log_evidence_gain = min_evidence;
         result.options.candidates = candidates;
+        result.options.significance = significance;
+        if (!train.is_none()) {
+          const py::tuple parts = train.cast<py::tuple>();
+          if (parts.size() < 2 || parts.size() > 3) {
+            throw std::invalid_argument("train: expected (X, Y) or (X, Y, t), got a tuple of " +
+                                        std::to_string(parts.size()));
+          }
+          RobotData train_data;
+          train_data.X = AsMatrix(parts[0], "train X");
+          train_data.Y = AsMatrix(parts[1], "train Y");
+          if (parts.size() == 3) train_data.t = AsVector(parts[2], "train t");
+          result.options.training_inputs = ModelInputs(fitted, train_data.X, train_data.t);
+          result.options.training_targets = train_data.Y;
+          result.options.training_times = train_data.t;
+        }
         std::string html;
         const std::string report_path = report.is_none() ? "" : py::str(report).cast<std::string>();
         {
@@ -610,10 +644,15 @@ void BindDiagnosis(py::module_& m) {
       py::arg("report") = py::none(), py::arg("folds") = DiagnosisOptions().folds,
       py::arg("min_evidence") = DiagnosisOptions().min_log_evidence_gain,
       py::arg("candidates") = std::vector<std::string>(),
+      py::arg("significance") = DiagnosisOptions().significance, py::arg("train") = py::none(),
       "Diagnoses a fitted model on X, Y (and t, rows in time order), as `structgp diagnose`: "
-      "per joint the residual and where it concentrates, and the effects the model misses, "
-      "each scored by evidence and blocked cross-validation. report=PATH also writes the HTML "
-      "report. Raises ValueError for bad input, structgp.Error when the diagnosis fails.");
+      "per joint the residual and where it concentrates, the verdict (a missing effect, or "
+      "motions the training data did not cover), and the effects the model misses, each scored "
+      "by evidence corrected for autocorrelation, a Holm test at `significance`, its size and "
+      "the error on unseen trajectories or blocks. train=(X, Y[, t]), the model's training data: "
+      "candidates are scored on it and the data together, and the findings say how far the data "
+      "are from the training states. report=PATH also writes the HTML report. "
+      "Raises ValueError for bad input, structgp.Error when the diagnosis fails.");
 }
 
 // ---- online learner --------------------------------------------------------------------------

@@ -68,7 +68,12 @@ Outcome RunCase(HiddenEffect effect, int joint, double magnitude, bool whole_log
     t << scenario.train.t, scenario.test.t;
     out.diagnosis = Diagnose(model, X, Y, t);
   } else {
-    out.diagnosis = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t);
+    // As a user would: the log to diagnose and the data the model was trained on.
+    DiagnosisOptions options;
+    options.training_inputs = scenario.train.X;
+    options.training_targets = scenario.train.Y;
+    options.training_times = scenario.train.t;
+    out.diagnosis = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, options);
   }
   Matrix pred;
   model.PredictRows(scenario.test.X, &pred);

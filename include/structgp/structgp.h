@@ -61,6 +61,7 @@
 
 // Diagnosis: which physical effect the model is missing.
 #include "structgp/fit/fit_model.h"
+#include "structgp/diagnose/autocorrelation.h"
 #include "structgp/diagnose/diagnosis.h"
 #include "structgp/diagnose/diagnosis_report.h"
 

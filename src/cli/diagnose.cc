@@ -36,6 +36,15 @@ class DiagnoseCommand : public Command {
                     "Minimum gain in log evidence (nats) for a suggestion")
         ->check(CLI::Range(0.0, 1e9))
         ->capture_default_str();
+    cmd->add_option("--significance", options_.significance,
+                    "Family-wise error rate (Holm) over every candidate on every joint")
+        ->check(CLI::Range(1e-12, 0.5))
+        ->capture_default_str();
+    cmd->add_option("--train", train_,
+                    "The model's training data (CSV as --data): candidates are then scored on "
+                    "the training data and --data together (a sharper test: a model refitted on "
+                    "one log alone can bend along it), and the findings say how far --data is "
+                    "from the training states");
     cmd->add_option("--nystrom", options_.nystrom_features,
                     "Function-space models (rbf, rbfs, pol from 4 joints): Nystrom features of "
                     "the model's kernel the candidates are scored against")
@@ -43,8 +52,11 @@ class DiagnoseCommand : public Command {
         ->capture_default_str();
     cmd->footer(
         "Every candidate effect (viscous, coulomb, stribeck, offset, cogging, spring, drift)\n"
-        "on every joint is scored by the gain in log evidence of the joint's torque and by\n"
-        "blocked cross-validation; suggestions need both.\n"
+        "on every joint is scored by the gain in log evidence of the joint's torque\n"
+        "(corrected for autocorrelated residuals), a multiplicity-controlled test, its effect\n"
+        "size and the error on unseen trajectories or blocks; suggestions need all of them.\n"
+        "The verdict says whether the error is a missing effect or motions the training data\n"
+        "did not cover (docs/diagnosis.md).\n"
         "Example:\n"
         "  structgp diagnose --model model.json --data test.csv --json findings.json "
         "--report report.html");
@@ -58,6 +70,12 @@ class DiagnoseCommand : public Command {
     const RobotModel model = LoadModel(model_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);
+    if (!train_.empty()) {
+      const RobotData train = ReadData(train_, model.num_joints());
+      options_.training_inputs = ModelInputs(model, train);
+      options_.training_targets = train.Y;
+      options_.training_times = train.t;
+    }
     Diagnosis diagnosis;
     try {
       diagnosis = Diagnose(model, X, data.Y, data.t, options_);
@@ -87,7 +105,7 @@ class DiagnoseCommand : public Command {
   }
 
  private:
-  std::string model_, data_, json_, report_;
+  std::string model_, data_, json_, report_, train_;
   DiagnosisOptions options_;
 };
 

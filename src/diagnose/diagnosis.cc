@@ -8,9 +8,11 @@
 #include <stdexcept>
 
 #include <Eigen/Cholesky>
+#include <boost/math/distributions/chi_squared.hpp>
 #include <nlohmann/json.hpp>
 
 #include "structgp/core/validate.h"
+#include "structgp/diagnose/autocorrelation.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
 #include "structgp/feature/friction_feature_map.h"
@@ -21,6 +23,7 @@
 #include "structgp/hyper/evidence.h"
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/internal/cholesky.h"
+#include "structgp/internal/text.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
 
@@ -40,10 +43,23 @@ struct Candidate {
 
 // Folds as (begin, size): SegmentFolds' blocks (whole trajectories when the log has enough of
 // them), in time order.
-std::vector<std::pair<int, int>> Folds(int m, int k, const Vector& t) {
-  std::vector<std::pair<int, int>> folds = SegmentFolds(m, k, SegmentStarts(t));
+std::vector<std::pair<int, int>> Folds(int m, int k, const std::vector<int>& starts) {
+  std::vector<std::pair<int, int>> folds = SegmentFolds(m, k, starts);
   for (auto& fold : folds) fold.second -= fold.first;
   return folds;
+}
+
+// Noise level from successive differences of a residual, robustly: a missing effect that is
+// smooth along the log cancels in the differences, and the median ignores its rare jumps (a
+// Coulomb step at each velocity reversal): median |r_{i+1} - r_i| / (0.6745 sqrt 2).
+double NoiseFromDifferences(const Vector& r) {
+  const Eigen::Index m = r.size();
+  if (m < 2) return 0.0;
+  std::vector<double> d(static_cast<size_t>(m - 1));
+  for (Eigen::Index i = 0; i + 1 < m; ++i) d[static_cast<size_t>(i)] = std::abs(r[i + 1] - r[i]);
+  auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
+  std::nth_element(d.begin(), mid, d.end());
+  return *mid / (0.6744897501960817 * std::sqrt(2.0));
 }
 
 std::vector<Concentration> Concentrations(const Vector& r, const Matrix& vars,
@@ -301,6 +317,34 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
                   number(range.max) + "]");
     }
   }
+  if (!(significance > 0.0 && significance < 1.0)) {
+    return fail("significance: expected a level in (0, 1), got " + number(significance));
+  }
+  if (!(min_residual_fall >= 0.0 && min_residual_fall < 1.0)) {
+    return fail("min_residual_fall: expected a fraction in [0, 1), got " +
+                number(min_residual_fall));
+  }
+  if (!(held_out_fall_alone > 0.0 && held_out_fall_alone <= 1.0)) {
+    return fail("held_out_fall_alone: expected a fraction in (0, 1], got " +
+                number(held_out_fall_alone));
+  }
+  if (!(min_effect_to_noise >= 0.0) || !std::isfinite(min_effect_to_noise)) {
+    return fail("min_effect_to_noise: expected a finite value >= 0, got " +
+                number(min_effect_to_noise));
+  }
+  if (!(min_effect_z >= 0.0) || !std::isfinite(min_effect_z)) {
+    return fail("min_effect_z: expected a finite value >= 0, got " + number(min_effect_z));
+  }
+  if (confirmation_gap < -1) {
+    return fail("confirmation_gap: expected -1 (automatic) or >= 0 rows, got " +
+                std::to_string(confirmation_gap));
+  }
+  if (!(coverage_ratio >= 1.0) || !std::isfinite(coverage_ratio)) {
+    return fail("coverage_ratio: expected a finite value >= 1, got " + number(coverage_ratio));
+  }
+  if (!(noise_tolerance >= 1.0) || !std::isfinite(noise_tolerance)) {
+    return fail("noise_tolerance: expected a finite value >= 1, got " + number(noise_tolerance));
+  }
   if (nystrom_features < 1) {
     return fail("nystrom_features: expected >= 1, got " + std::to_string(nystrom_features));
   }
@@ -312,10 +356,15 @@ namespace {
 // Diagnose, with numerical trouble deep inside (a profile of the evidence, the Nystrom
 // factorisation, a prediction) as std::runtime_error.
 // only_joint (1-based, 0: every joint): the candidates of that joint alone; a model with a
-// regressor (rbd) is diagnosed one joint at a time, against the features of its row.
+// regressor (rbd) is diagnosed one joint at a time, against the features of its row, and
+// test_multiplier (the number of joints) makes each call count every joint's tests.
+// X, Y, t: the rows the candidates are scored on, segment starts `starts`; the diagnosed log is
+// rows log_begin.. (the training data, when given, come first).
 Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                           const ConstMatrixRef& Y, const Vector& t,
-                          const DiagnosisOptions& options, int only_joint) {
+                          const std::vector<int>& starts, int log_begin,
+                          const DiagnosisOptions& options, int only_joint,
+                          int test_multiplier) {
   std::string invalid;
   if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
   if (!model.fitted() || (!model.feature_map() && !model.kernel() && !model.regressor_map())) {
@@ -365,33 +414,33 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                    " inducing states chosen among the rows (D = " +
                    std::to_string(base_map->dim()) + ")";
   }
-  out.num_samples = m;
+  const int m_log = m - log_begin;
+  out.num_samples = m_log;
   out.model = ToString(model.spec());
   if (!model.spec().effects.empty()) out.model += " + " + ToString(model.spec().effects);
 
   // ---- residuals of the model as it is -----------------------------------------------------
   Matrix mean;
-  model.PredictRows(X, &mean);
-  const Matrix R = Y - mean;
-  Matrix vars(m, 3 * N + (t.size() ? 1 : 0));
-  vars.leftCols(3 * N) = X.leftCols(3 * N);
+  model.PredictRows(X.bottomRows(m_log), &mean);
+  const Matrix R = Y.bottomRows(m_log) - mean;
+  Matrix vars(m_log, 3 * N + (t.size() ? 1 : 0));
+  vars.leftCols(3 * N) = X.bottomRows(m_log).leftCols(3 * N);
   std::vector<std::string> var_names;
   for (const char* prefix : {"q", "qd", "qdd"}) {
     for (int j = 1; j <= N; ++j) var_names.push_back(prefix + std::to_string(j));
   }
   if (t.size()) {
-    vars.col(3 * N) = t;
+    vars.col(3 * N) = t.tail(m_log);
     var_names.push_back("t");
   }
   for (int j = 0; j < N; ++j) {
     JointFinding f;
     f.joint = j + 1;
     const Vector r = R.col(j);
-    f.rms = std::sqrt(r.squaredNorm() / m);
-    const double var_y = (Y.col(j).array() - Y.col(j).mean()).square().mean();
+    f.rms = std::sqrt(r.squaredNorm() / m_log);
+    const Vector y = Y.col(j).tail(m_log);
+    const double var_y = (y.array() - y.mean()).square().mean();
     f.nmse = var_y > 0 ? f.rms * f.rms / var_y : 0.0;
-    const Vector dr = r.tail(m - 1) - r.head(m - 1);
-    f.noise_std_estimate = std::sqrt(dr.squaredNorm() / (2.0 * (m - 1)));
     f.concentrations = Concentrations(r, vars, var_names, options.bins);
     out.joints.push_back(f);
   }
@@ -438,6 +487,14 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
     refit_residual = Yg - Phi * refit.weights();
   }
+  for (int j = 0; j < N; ++j) {
+    // The noise from the refit's residual: the model's own residual on a log it extrapolates
+    // to is large and varies from row to row by more than the noise.
+    const Vector r = refit_residual.col(j).tail(m_log);
+    out.joints[static_cast<size_t>(j)].refit_rms = std::sqrt(r.squaredNorm() / m_log);
+    out.joints[static_cast<size_t>(j)].noise_std_estimate = NoiseFromDifferences(r);
+  }
+
 
   std::vector<Candidate> candidates;
   std::vector<Matrix> blocks;  // candidate columns, in order
@@ -463,7 +520,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     blocks.push_back(std::move(E));
     candidates.push_back(std::move(c));
   };
-  EvidenceScorer scorer(base_map, Phi, Y, Xt, base_hyper, model.options().broad_prior_std);
+  EvidenceScorer scorer(base_map, Phi, Yg, Xt, base_hyper, model.options().broad_prior_std);
   const std::vector<std::string> names =
       options.candidates.empty() ? EffectNames() : options.candidates;
   for (const auto& name : names) {
@@ -504,25 +561,61 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       col += static_cast<int>(E.cols());
     }
   }
-  const auto folds = Folds(m, options.folds, t);
-  // Statistics of each fold; the total is their sum, a fold's training set the total minus it.
+  const bool by_trajectory = static_cast<int>(starts.size()) >= options.folds;
+  const auto fold_ranges = Folds(m, options.folds, starts);
+  // The gap: rows next to a held-out block (same trajectory) are too correlated with it to
+  // count as unseen; they are left out of that block's fit.
+  int gap = 0;
+  if (!by_trajectory) {
+    int smallest = m;
+    for (const auto& [begin, count] : fold_ranges) smallest = std::min(smallest, count);
+    gap = options.confirmation_gap >= 0 ? options.confirmation_gap
+                                        : CorrelationLength(
+                                              only_joint > 0 ? Matrix(refit_residual.col(only_joint - 1))
+                                                             : refit_residual,
+                                              starts, 0.1);
+    gap = std::min(gap, smallest / 2);
+  }
+  std::vector<int> segment_of(static_cast<size_t>(m));
+  for (size_t s = 0; s < starts.size(); ++s) {
+    const int end = s + 1 < starts.size() ? starts[s + 1] : m;
+    for (int i = starts[s]; i < end; ++i) segment_of[static_cast<size_t>(i)] = static_cast<int>(s);
+  }
+  // Statistics of each fold and of its gap rows; the total is the sum over folds, a fold's
+  // training set the total minus the fold and its gaps.
   std::vector<Matrix> fold_gram, fold_cross;
   Matrix G_total = Matrix::Zero(next_col, next_col), cross_total = Matrix::Zero(next_col, N);
-  for (const auto& [begin, count] : folds) {
+  auto statistics = [&](const std::vector<int>& rows, Matrix* G, Matrix* cross) {
     SufficientStatistics s(next_col, N);
-    s.Accumulate(F.middleRows(begin, count), Y.middleRows(begin, count));
+    if (!rows.empty()) s.Accumulate(F(rows, Eigen::all), Yg(rows, Eigen::all));
+    *G = s.gram.selfadjointView<Eigen::Lower>();
+    *cross = std::move(s.cross);
+  };
+  std::vector<Matrix> train_gram, train_cross;
+  std::vector<std::vector<int>> gap_rows(fold_ranges.size());
+  for (size_t f = 0; f < fold_ranges.size(); ++f) {
+    const auto [begin, count] = fold_ranges[f];
+    SufficientStatistics s(next_col, N);
+    s.Accumulate(F.middleRows(begin, count), Yg.middleRows(begin, count));
     Matrix G = s.gram.selfadjointView<Eigen::Lower>();
     G_total += G;
     cross_total += s.cross;
     fold_gram.push_back(std::move(G));
     fold_cross.push_back(std::move(s.cross));
+    const int end = begin + count;
+    for (int i = std::max(0, begin - gap); i < begin; ++i) {
+      if (segment_of[i] == segment_of[begin]) gap_rows[f].push_back(i);
+    }
+    for (int i = end; i < std::min(m, end + gap); ++i) {
+      if (segment_of[i] == segment_of[end - 1]) gap_rows[f].push_back(i);
+    }
   }
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
   const int D = base_map->dim();
   const Hyperparameters hyper = ProfileOnLog(base_map, G_total.topLeftCorner(D, D),
-                                             cross_total.topRows(D), Y, base_hyper);
+                                             cross_total.topRows(D), Yg, base_hyper);
   out.noise_std = hyper.noise_variance() > 0 ? std::sqrt(hyper.noise_variance()) : 0.0;
   Vector lambda(next_col);
   lambda.head(base_map->dim()) = PriorVariance(*base_map, hyper);
@@ -531,118 +624,508 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   const double s2n = hyper.noise_variance();
   const Vector s2 = hyper.output_scales().cwiseAbs2();
 
-  // ---- greedy forward selection -----------------------------------------------------------------
-  Index B(static_cast<size_t>(base_map->dim()));
-  std::iota(B.begin(), B.end(), 0);
-  const int num_fits = options.folds + 1;  // fit 0: all data; fit f + 1: all but fold f
+  const int num_folds = static_cast<int>(fold_ranges.size());
+  const int num_fits = num_folds + 1;  // fit 0: all data; fit f + 1: all but fold f and its gap
   std::vector<Matrix> Gs(static_cast<size_t>(num_fits)), crosses(static_cast<size_t>(num_fits));
   for (int fit = 0; fit < num_fits; ++fit) {
-    Gs[fit] = fit == 0 ? G_total : Matrix(G_total - fold_gram[fit - 1]);
-    crosses[fit] = fit == 0 ? cross_total : Matrix(cross_total - fold_cross[fit - 1]);
+    if (fit == 0) {
+      Gs[0] = G_total;
+      crosses[0] = cross_total;
+      continue;
+    }
+    Matrix G_gap, cross_gap;
+    statistics(gap_rows[fit - 1], &G_gap, &cross_gap);
+    Gs[fit] = G_total - fold_gram[fit - 1] - G_gap;
+    crosses[fit] = cross_total - fold_cross[fit - 1] - cross_gap;
   }
-  while (static_cast<int>(out.suggestions.size()) < options.max_suggestions) {
-    std::vector<BaseFit> base(static_cast<size_t>(num_fits));
+
+  // Fits of a base set of columns on all data and on each fold's training set.
+  struct BaseFits {
+    Index cols;
+    std::vector<BaseFit> fits;
+    Matrix residual;  // Yg - F_B W on all data (m x N)
+  };
+  auto fit_base = [&](const Index& cols, BaseFits* b) {
+    b->cols = cols;
+    b->fits.assign(static_cast<size_t>(num_fits), BaseFit{});
     for (int fit = 0; fit < num_fits; ++fit) {
-      base[fit] = FitBase(Gs[fit], crosses[fit], B, lambda, s2n);
-      if (!base[fit].ok) {
-        out.status = DiagnosisStatus::kNumericalFailure;
-        out.message = "the model's posterior could not be factorised on these data (not "
-                      "positive definite)";
-        out.suggestions.clear();
-        return out;
-      }
+      b->fits[fit] = FitBase(Gs[fit], crosses[fit], cols, lambda, s2n);
+      if (!b->fits[fit].ok) return false;
     }
-    // Held-out squared error per joint of the model refitted without the candidate.
-    Vector sse_base = Vector::Zero(N);
-    for (int f = 0; f < options.folds; ++f) {
-      const auto [begin, count] = folds[f];
-      const Matrix pred = F(Eigen::seqN(begin, count), B) * base[f + 1].W;
-      sse_base += (Y.middleRows(begin, count) - pred).colwise().squaredNorm().transpose();
+    b->residual = Yg - F(Eigen::all, cols) * b->fits[0].W;
+    return true;
+  };
+  // What adding the columns E to a base does to joint j.
+  struct Addition {
+    bool ok = false;
+    double statistic = 0;  // u^T Z^{-1} u / (sigma^2 s_j^2): chi-square(k) under white noise
+    double occam = 0;      // 1/2 (log|Z| + log|Lambda_E| - k log sigma^2)
+    double sse_before = 0, sse_after = 0;  // held-out, over the folds
+    int folds_improved = 0;
+    Vector change;         // the change in the fitted torque of joint j on all data
+    Vector residual_after;
+    Vector we;
+  };
+  auto add_columns = [&](const BaseFits& b, const Index& E, int j) {
+    Addition a;
+    const Augmented aug = Augment(b.fits[0], Gs[0], crosses[0], b.cols, E, lambda, s2n);
+    if (!aug.ok) return a;
+    a.we = aug.z.solve(Vector(aug.u.col(j)));
+    a.statistic = aug.u.col(j).dot(a.we) / (s2n * s2[j]);
+    const double log_det_z = 2.0 * Matrix(aug.z.matrixL()).diagonal().array().log().sum();
+    double log_lambda_e = 0.0;
+    for (int col : E) log_lambda_e += std::log(lambda[col]);
+    a.occam = 0.5 * (log_det_z + log_lambda_e - static_cast<double>(E.size()) * std::log(s2n));
+    for (int f = 0; f < num_folds; ++f) {
+      const auto [begin, count] = fold_ranges[f];
+      const BaseFit& base = b.fits[f + 1];
+      const Augmented af = Augment(base, Gs[f + 1], crosses[f + 1], b.cols, E, lambda, s2n);
+      if (!af.ok) return Addition{};
+      const Vector we = af.z.solve(Vector(af.u.col(j)));
+      const Vector delta = base.llt.matrixU().solve(Vector(af.V * we));
+      const Vector before = F(Eigen::seqN(begin, count), b.cols) * base.W.col(j);
+      const Vector after = before - F(Eigen::seqN(begin, count), b.cols) * delta +
+                           F(Eigen::seqN(begin, count), E) * we;
+      const double sb = (Yg.col(j).segment(begin, count) - before).squaredNorm();
+      const double sa = (Yg.col(j).segment(begin, count) - after).squaredNorm();
+      a.sse_before += sb;
+      a.sse_after += sa;
+      if (sa < sb) ++a.folds_improved;
     }
+    const Vector delta = b.fits[0].llt.matrixU().solve(Vector(aug.V * a.we));
+    a.change = F(Eigen::all, E) * a.we - F(Eigen::all, b.cols) * delta;
+    a.residual_after = b.residual.col(j) - a.change;
+    a.ok = std::isfinite(a.statistic) && std::isfinite(a.sse_after) && a.change.allFinite();
+    return a;
+  };
+
+  // ---- selection ----------------------------------------------------------------------------
+  Index B(static_cast<size_t>(base_map->dim()));
+  std::iota(B.begin(), B.end(), 0);
+  // Every candidate on every joint is a test (a model diagnosed one joint at a time passes
+  // the other joints' count in test_multiplier).
+  const int num_tests = std::max(1, static_cast<int>(candidates.size()) * test_multiplier);
+  const char* confirmation = by_trajectory ? "trajectories" : "blocks";
+  // Candidates that passed every bar when first scored, with their numbers then (for the
+  // joint choice of friction-like effects below).
+  std::map<int, Suggestion> eligible;
+  auto threshold = [&](int round) {
+    switch (options.multiplicity) {
+      case DiagnosisOptions::Multiplicity::kHolm:
+        return options.significance / std::max(1, num_tests - round);
+      case DiagnosisOptions::Multiplicity::kBenjaminiHochberg:
+        return options.significance * (round + 1) / num_tests;
+      case DiagnosisOptions::Multiplicity::kNone:
+        break;
+    }
+    return options.significance;
+  };
+  auto adjust = [&](double p, int round) {
+    switch (options.multiplicity) {
+      case DiagnosisOptions::Multiplicity::kHolm:
+        return std::min(1.0, p * std::max(1, num_tests - round));
+      case DiagnosisOptions::Multiplicity::kBenjaminiHochberg:
+        return std::min(1.0, p * num_tests / (round + 1));
+      case DiagnosisOptions::Multiplicity::kNone:
+        break;
+    }
+    return p;
+  };
+  // Bartlett's inflation of the test of columns E against the base b, with the residual the
+  // columns leave: the largest over the columns as the test sees them (what b does not explain).
+  auto calibrate = [&](const BaseFits& b, const Index& E, const Vector& residual_after) {
+    double inflation = 1.0;
+    if (!options.autocorrelation_correction) return inflation;
+    const Matrix P = b.fits[0].llt.solve(Matrix(Gs[0](b.cols, E)));
+    const Matrix E_perp = F(Eigen::all, E) - F(Eigen::all, b.cols) * P;
+    for (int k = 0; k < E_perp.cols(); ++k) {
+      inflation = std::max(inflation, BartlettInflation(residual_after, E_perp.col(k), starts));
+    }
+    return inflation;
+  };
+  // Scores candidate ci against the base b; true when it passes every bar of this round.
+  auto evaluate = [&](const BaseFits& b, size_t ci, int round, Suggestion* s) {
+    const Candidate& c = candidates[ci];
+    const int j = c.joint - 1;
+    const Addition a = add_columns(b, c.cols, j);
+    if (!a.ok) return false;
+    const double gain_white = 0.5 * a.statistic - a.occam;
+    const double rms_before = std::sqrt(a.sse_before / m), rms_after = std::sqrt(a.sse_after / m);
+    const double res_before = std::sqrt(b.residual.col(j).squaredNorm() / m);
+    const double res_after = std::sqrt(a.residual_after.squaredNorm() / m);
+    const double noise = out.joints[static_cast<size_t>(j)].noise_std_estimate;
+    const double effect_rms = std::sqrt(a.change.squaredNorm() / m);
+    // Cheap bars first (the calibration below costs O(m K) per column).
+    if (!(gain_white > options.min_log_evidence_gain)) return false;
+    if (!(rms_after < (1.0 - options.min_relative_rms_gain) * rms_before)) return false;
+    // The effect's size on this log; or, when a refit absorbs it in sample, out of sample.
+    const bool large_held_out = rms_after <= (1.0 - options.held_out_fall_alone) * rms_before;
+    if (!large_held_out) {
+      if (!(res_after <= (1.0 - options.min_residual_fall) * res_before)) return false;
+      if (!(effect_rms >= options.min_effect_to_noise * noise)) return false;
+    }
+    const double inflation = calibrate(b, c.cols, a.residual_after);
+    const double statistic = a.statistic / inflation;
+    const double dof = static_cast<double>(c.cols.size());
+    const double p = boost::math::cdf(boost::math::complement(
+        boost::math::chi_squared_distribution<double>(dof), statistic));
+    s->effect = c.effect;
+    s->joint = c.joint;
+    s->score = 0.5 * statistic - a.occam;
+    s->score_uncorrected = gain_white;
+    s->inflation = inflation;
+    s->effective_samples = m / inflation;
+    s->p_value = p;
+    s->adjusted_p_value = adjust(p, round);
+    s->effect_rms = effect_rms;
+    s->effect_to_noise = noise > 0 ? effect_rms / noise : HUGE_VAL;
+    s->z = std::sqrt(statistic);
+    s->rms_before = rms_before;
+    s->rms_after = rms_after;
+    s->residual_rms_before = res_before;
+    s->residual_rms_after = res_after;
+    s->confirmation = confirmation;
+    s->confirmation_folds = num_folds;
+    s->confirmation_gap = gap;
+    s->folds_improved = a.folds_improved;
+    s->residual_before_rows = b.residual.col(j).tail(m_log);
+    s->residual_after_rows = a.residual_after.tail(m_log);
+    s->params = MakeEffect(c.effect, c.params)->parameters();
+    s->spec = c.spec;
+    return s->score > options.min_log_evidence_gain && s->z >= options.min_effect_z &&
+           p <= threshold(round);
+  };
+
+  // The suggestions so far, with the candidate each one is.
+  std::vector<std::pair<int, Suggestion>> picks;
+  BaseFits base;
+  while (static_cast<int>(picks.size()) < options.max_suggestions) {
+    if (!fit_base(B, &base)) {
+      out.status = DiagnosisStatus::kNumericalFailure;
+      out.message = "the model's posterior could not be factorised on these data (not "
+                    "positive definite)";
+      return out;
+    }
+    const int round = static_cast<int>(picks.size());
     int best = -1;
     Suggestion best_s;
     for (size_t ci = 0; ci < candidates.size(); ++ci) {
-      Candidate& c = candidates[ci];
-      if (!c.alive) continue;
-      const int j = c.joint - 1;
-      const Augmented aug = Augment(base[0], Gs[0], crosses[0], B, c.cols, lambda, s2n);
-      if (!aug.ok) continue;
-      const double gain = LogEvidenceGain(aug, c.cols, lambda, s2n, s2[j], j);
-      // Held-out error of joint j with the candidate, from the same fold fits.
-      double sse_aug = 0.0;
-      bool ok = true;
-      for (int f = 0; f < options.folds && ok; ++f) {
-        const auto [begin, count] = folds[f];
-        const Augmented a = Augment(base[f + 1], Gs[f + 1], crosses[f + 1], B, c.cols, lambda, s2n);
-        if (!a.ok) {
-          ok = false;
-          break;
-        }
-        const Vector we = a.z.solve(Vector(a.u.col(j)));
-        const Vector wb =
-            base[f + 1].W.col(j) - base[f + 1].llt.matrixU().solve(Vector(a.V * we));
-        const Vector pred = F(Eigen::seqN(begin, count), B) * wb +
-                            F(Eigen::seqN(begin, count), c.cols) * we;
-        sse_aug += (Y.col(j).segment(begin, count) - pred).squaredNorm();
-      }
-      if (!ok) continue;
-      const double rms_before = std::sqrt(sse_base[j] / m);
-      const double rms_after = std::sqrt(sse_aug / m);
-      const bool significant = gain > options.min_log_evidence_gain &&
-                               rms_after < (1.0 - options.min_relative_rms_gain) * rms_before;
-      if (significant && (best < 0 || gain > best_s.score)) {
+      if (!candidates[ci].alive) continue;
+      Suggestion s;
+      if (!evaluate(base, ci, round, &s)) continue;
+      eligible.emplace(static_cast<int>(ci), s);
+      if (best < 0 || s.score > best_s.score) {
         best = static_cast<int>(ci);
-        best_s.effect = c.effect;
-        best_s.joint = c.joint;
-        best_s.score = gain;
-        best_s.rms_before = rms_before;
-        best_s.rms_after = rms_after;
-        best_s.params = MakeEffect(c.effect, c.params)->parameters();
-        best_s.spec = c.spec;
+        best_s = s;
       }
     }
     if (best < 0) break;
-    Candidate& chosen = candidates[static_cast<size_t>(best)];
-    {
-      // Residual of the chosen joint on all the data, refitted without and with the effect.
-      const int j = chosen.joint - 1;
-      const Augmented aug = Augment(base[0], Gs[0], crosses[0], B, chosen.cols, lambda, s2n);
-      const Vector we = aug.z.solve(Vector(aug.u.col(j)));
-      const Vector wb = base[0].W.col(j) - base[0].llt.matrixU().solve(Vector(aug.V * we));
-      const Vector before = Y.col(j) - F(Eigen::all, B) * base[0].W.col(j);
-      const Vector after = Y.col(j) - F(Eigen::all, B) * wb - F(Eigen::all, chosen.cols) * we;
-      best_s.residual_rms_before = std::sqrt(before.squaredNorm() / m);
-      best_s.residual_rms_after = std::sqrt(after.squaredNorm() / m);
-    }
-    out.suggestions.push_back(best_s);
+    const Candidate& chosen = candidates[static_cast<size_t>(best)];
+    picks.emplace_back(best, best_s);
     B.insert(B.end(), chosen.cols.begin(), chosen.cols.end());
     for (auto& c : candidates) {
       if (c.effect == chosen.effect && c.joint == chosen.joint) c.alive = false;
     }
   }
+
+  // ---- friction-like effects of one joint, chosen jointly ------------------------------------
+  // Coulomb, viscous, Stribeck, drift and offset overlap: the greedy step may take the one that
+  // explains most of the log alone where a pair explains it better. Per joint, every set of
+  // at most three of those that passed (one parameter set per effect) is scored by its
+  // calibrated evidence against the base with every other suggestion.
+  static const std::set<std::string> kFrictionLike = {"viscous", "coulomb", "stribeck", "drift",
+                                                      "offset"};
+  for (int joint = 1; joint <= N; ++joint) {
+    std::vector<int> pool;  // every friction-like candidate of the joint that passed
+    for (const auto& [ci, s] : eligible) {
+      const Candidate& c = candidates[static_cast<size_t>(ci)];
+      if (c.joint == joint && kFrictionLike.count(c.effect)) pool.push_back(ci);
+    }
+    if (pool.size() < 2) continue;
+    // The greedy choice on this joint, and the base without it.
+    std::vector<int> greedy_set;
+    Index others(static_cast<size_t>(base_map->dim()));
+    std::iota(others.begin(), others.end(), 0);
+    for (const auto& [ci, s] : picks) {
+      if (s.joint == joint && kFrictionLike.count(s.effect)) {
+        greedy_set.push_back(ci);
+      } else {
+        const Index& cols = candidates[static_cast<size_t>(ci)].cols;
+        others.insert(others.end(), cols.begin(), cols.end());
+      }
+    }
+    if (greedy_set.empty()) continue;
+    BaseFits rest;
+    if (!fit_base(others, &rest)) continue;
+    auto columns_of = [&](const std::vector<int>& set) {
+      Index cols;
+      for (int ci : set) {
+        const Index& c = candidates[static_cast<size_t>(ci)].cols;
+        cols.insert(cols.end(), c.begin(), c.end());
+      }
+      return cols;
+    };
+    const Addition greedy_add = add_columns(rest, columns_of(greedy_set), joint - 1);
+    if (!greedy_add.ok) continue;
+    if (pool.size() > 8) {  // the best 8 by score: at most 92 sets below
+      std::sort(pool.begin(), pool.end(),
+                [&](int a, int b) { return eligible.at(a).score > eligible.at(b).score; });
+      pool.resize(8);
+    }
+    const int n = static_cast<int>(pool.size());
+    // A set's evidence, its statistic deflated by its own Bartlett factor.
+    auto set_gain = [&](const std::vector<int>& set, const Addition& a) {
+      return 0.5 * a.statistic / calibrate(rest, columns_of(set), a.residual_after) - a.occam;
+    };
+    // A set replaces the greedy choice when its evidence is higher by min_log_evidence_gain
+    // and its held-out error is no worse; the set of highest evidence among those.
+    const double greedy_gain = set_gain(greedy_set, greedy_add);
+    std::vector<int> best_set = greedy_set;
+    Addition best_add = greedy_add;
+    double best_gain = greedy_gain + options.min_log_evidence_gain;
+    for (int mask = 1; mask < (1 << n); ++mask) {
+      if (__builtin_popcount(static_cast<unsigned>(mask)) > 3) continue;
+      std::vector<int> set;
+      std::set<std::string> effects;  // one parameter set per effect
+      for (int i = 0; i < n; ++i) {
+        if (mask & (1 << i)) {
+          set.push_back(pool[static_cast<size_t>(i)]);
+          effects.insert(candidates[static_cast<size_t>(pool[static_cast<size_t>(i)])].effect);
+        }
+      }
+      if (effects.size() != set.size()) continue;
+      const Addition a = add_columns(rest, columns_of(set), joint - 1);
+      if (!a.ok || a.sse_after > greedy_add.sse_after) continue;
+      const double gain = set_gain(set, a);
+      if (gain > best_gain) {
+        best_set = set;
+        best_add = a;
+        best_gain = gain;
+      }
+    }
+    std::sort(best_set.begin(), best_set.end());
+    std::sort(greedy_set.begin(), greedy_set.end());
+    if (best_set == greedy_set) continue;
+    // Replace the greedy choice on this joint by the set; its members keep the calibration
+    // numbers of their first scoring, and carry the set's held-out and residual numbers.
+    picks.erase(std::remove_if(picks.begin(), picks.end(),
+                               [&](const std::pair<int, Suggestion>& p) {
+                                 return std::find(greedy_set.begin(), greedy_set.end(),
+                                                  p.first) != greedy_set.end();
+                               }),
+                picks.end());
+    for (int ci : best_set) {
+      Suggestion s = eligible.at(ci);
+      s.selection = "joint";
+      s.rms_before = std::sqrt(best_add.sse_before / m);
+      s.rms_after = std::sqrt(best_add.sse_after / m);
+      s.residual_rms_before = std::sqrt(rest.residual.col(joint - 1).squaredNorm() / m);
+      s.residual_rms_after = std::sqrt(best_add.residual_after.squaredNorm() / m);
+      s.folds_improved = best_add.folds_improved;
+      s.residual_before_rows = rest.residual.col(joint - 1).tail(m_log);
+      s.residual_after_rows = best_add.residual_after.tail(m_log);
+      picks.emplace_back(ci, s);
+    }
+  }
+  for (auto& [ci, s] : picks) out.suggestions.push_back(std::move(s));
   std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
                    [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
+  if (static_cast<int>(out.suggestions.size()) > options.max_suggestions) {
+    out.suggestions.resize(static_cast<size_t>(options.max_suggestions));
+  }
   return out;
 }
 
 }  // namespace
 
+namespace {
+
+// Distance of every row of X to the nearest training state, per joint, in the joint's
+// (q, qd, qdd) standardised by the training data; decimated in time into the finding.
+void MeasureCoverage(const ConstMatrixRef& X, const Vector& t, const Matrix& train, int N,
+                     Diagnosis* d) {
+  const int m = static_cast<int>(X.rows());
+  constexpr int kMaxTrainingStates = 2000, kMaxPoints = 400;
+  const int n_all = static_cast<int>(train.rows());
+  const int n = std::min(n_all, kMaxTrainingStates);
+  Matrix dist(m, N);
+  for (int j = 0; j < N; ++j) {
+    Eigen::Matrix<double, 3, Eigen::Dynamic> T(3, n);
+    for (int i = 0; i < n; ++i) {
+      const int row = static_cast<int>(static_cast<long long>(i) * n_all / n);
+      for (int v = 0; v < 3; ++v) T(v, i) = train(row, v * N + j);
+    }
+    Eigen::Vector3d mean, scale;
+    for (int v = 0; v < 3; ++v) {
+      const Vector col = train.col(v * N + j);
+      mean[v] = col.mean();
+      const double sd = std::sqrt((col.array() - mean[v]).square().mean());
+      scale[v] = sd > 0 ? 1.0 / sd : 1.0;
+    }
+    T = scale.asDiagonal() * (T.colwise() - mean);
+    for (int r = 0; r < m; ++r) {
+      Eigen::Vector3d x;
+      for (int v = 0; v < 3; ++v) x[v] = scale[v] * (X(r, v * N + j) - mean[v]);
+      dist(r, j) = std::sqrt((T.colwise() - x).colwise().squaredNorm().minCoeff());
+    }
+  }
+  for (int j = 0; j < N && j < static_cast<int>(d->joints.size()); ++j) {
+    d->joints[static_cast<size_t>(j)].outside_fraction = (dist.col(j).array() > 1.0).cast<double>().mean();
+    d->joints[static_cast<size_t>(j)].max_distance = dist.col(j).maxCoeff();
+  }
+  const int points = std::min(m, kMaxPoints);
+  d->coverage.distance_time.resize(points);
+  d->coverage.distance.resize(points, N);
+  for (int p = 0; p < points; ++p) {
+    const int begin = static_cast<int>(static_cast<long long>(p) * m / points);
+    const int end = static_cast<int>(static_cast<long long>(p + 1) * m / points);
+    d->coverage.distance_time[p] = t.size() ? t[begin] : static_cast<double>(begin);
+    d->coverage.distance.row(p) = dist.middleRows(begin, end - begin).colwise().maxCoeff();
+  }
+}
+
+// The verdict of the coverage finding, from the joints' errors and the suggestions.
+void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
+  CoverageFinding& c = d->coverage;
+  c.coverage_joints.clear();
+  bool all_explained = true, refit_short = false;
+  std::string worst;
+  for (const JointFinding& f : d->joints) {
+    const double noise = options.noise_tolerance * f.noise_std_estimate;
+    if (f.rms > noise) all_explained = false;
+    if (f.refit_rms > noise) refit_short = true;
+    if (f.refit_rms <= noise && f.rms > options.coverage_ratio * f.refit_rms) {
+      c.coverage_joints.push_back(f.joint);
+      worst += internal::Format("%sjoint %d: %.3g on the log, %.3g refitted there", worst.empty() ? "" : "; ",
+                                f.joint, f.rms, f.refit_rms);
+    }
+  }
+  std::string joints;
+  for (int j : c.coverage_joints) joints += (joints.empty() ? "" : ", ") + std::to_string(j);
+  const std::string coverage_text =
+      c.coverage_joints.empty()
+          ? ""
+          : "the model does not extrapolate to these motions on joint" +
+                std::string(c.coverage_joints.size() > 1 ? "s " : " ") + joints + " (" + worst +
+                "): refitted on this log it reaches the noise, so the training data, not the "
+                "physics, are missing; retrain with motions like these";
+  if (!d->suggestions.empty()) {
+    c.verdict = Verdict::kMissingEffect;
+    c.message = "effects are missing (see the suggestions)" +
+                (coverage_text.empty() ? std::string() : "; also " + coverage_text);
+  } else if (!c.coverage_joints.empty()) {
+    c.verdict = Verdict::kCoverage;
+    c.message = coverage_text;
+  } else if (refit_short && !all_explained) {
+    c.verdict = Verdict::kUnexplained;
+    c.message = "refitted on this log the model stays above the noise on some joint, and no "
+                "candidate effect explains it";
+  } else {
+    c.verdict = Verdict::kExplained;
+    c.message = "the model explains this log to the noise";
+  }
+}
+
+}  // namespace
+
+const char* ToString(Verdict verdict) {
+  switch (verdict) {
+    case Verdict::kExplained:
+      return "explained";
+    case Verdict::kCoverage:
+      return "coverage";
+    case Verdict::kMissingEffect:
+      return "missing_effect";
+    case Verdict::kUnexplained:
+      return "unexplained";
+  }
+  return "unknown";
+}
+
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options) {
-  try {
-    if (!model.regressor_map()) return DiagnoseOrThrow(model, X, Y, t, options, 0);
-    // One joint at a time against its own row of the regressor; the suggestions merged.
-    Diagnosis out = DiagnoseOrThrow(model, X, Y, t, options, 1);
-    for (int j = 2; j <= model.num_joints() && out.status == DiagnosisStatus::kOk; ++j) {
-      Diagnosis joint = DiagnoseOrThrow(model, X, Y, t, options, j);
-      if (joint.status != DiagnosisStatus::kOk) return joint;
-      out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
-                             joint.suggestions.end());
+  const int N = model.num_joints();
+  const bool with_training = options.training_targets.size() != 0;
+  if (options.training_inputs.size() != 0) {
+    const Eigen::Index cols = with_training ? model.input_dim() : 3 * N;
+    if ((with_training ? options.training_inputs.cols() != cols
+                       : options.training_inputs.cols() < cols) ||
+        options.training_inputs.rows() < 1) {
+      throw std::invalid_argument(
+          "Diagnose: DiagnosisOptions::training_inputs: expected rows x " +
+          std::string(with_training ? "" : "at least ") + std::to_string(cols) +
+          " columns (the model's inputs), got " + std::to_string(options.training_inputs.rows()) +
+          " x " + std::to_string(options.training_inputs.cols()));
     }
-    std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
-                     [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
-    if (static_cast<int>(out.suggestions.size()) > options.max_suggestions) {
-      out.suggestions.resize(static_cast<size_t>(options.max_suggestions));
+    RequireFinite("Diagnose training_inputs", options.training_inputs);
+  }
+  // With the training data, the candidates are scored on the training rows and the log together.
+  Matrix Xu, Yu;
+  Vector tu;
+  std::vector<int> starts = SegmentStarts(t);
+  int log_begin = 0;
+  if (with_training) {
+    const Matrix& Xtr = options.training_inputs;
+    const Matrix& Ytr = options.training_targets;
+    if (Xtr.size() == 0) {
+      throw std::invalid_argument(
+          "Diagnose: DiagnosisOptions::training_targets given without training_inputs");
+    }
+    RequireSize("Diagnose training_targets", Ytr.rows(), Xtr.rows(), "rows (as training_inputs)");
+    RequireSize("Diagnose training_targets", Ytr.cols(), N, "columns (joints)");
+    RequireFinite("Diagnose training_targets", Ytr);
+    const Vector& ttr = options.training_times;
+    if (t.size() != 0 && ttr.size() != Xtr.rows()) {
+      throw std::invalid_argument(
+          "Diagnose: DiagnosisOptions::training_times: the log has times, so the training data "
+          "need them too: expected " + std::to_string(Xtr.rows()) + " entries, got " +
+          std::to_string(ttr.size()));
+    }
+    RequireFinite("Diagnose training_times", ttr);
+    RequireSize("Diagnose X", X.cols(), model.input_dim(), "columns");
+    RequireSize("Diagnose Y", Y.cols(), N, "columns (joints)");
+    log_begin = static_cast<int>(Xtr.rows());
+    Xu.resize(Xtr.rows() + X.rows(), X.cols());
+    Xu << Xtr, X;
+    Yu.resize(Ytr.rows() + Y.rows(), N);
+    Yu << Ytr, Y;
+    if (t.size() != 0) {
+      tu.resize(ttr.size() + t.size());
+      tu << ttr, t;
+    }
+    starts = t.size() != 0 ? SegmentStarts(ttr) : std::vector<int>{0};
+    for (int s : SegmentStarts(t)) starts.push_back(log_begin + s);
+  }
+  const ConstMatrixRef Xs = with_training ? ConstMatrixRef(Xu) : X;
+  const ConstMatrixRef Ys = with_training ? ConstMatrixRef(Yu) : Y;
+  const Vector& ts = with_training ? tu : t;
+  try {
+    Diagnosis out;
+    if (!model.regressor_map()) {
+      out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 0, 1);
+    } else {
+      // One joint at a time against its own row of the regressor; the suggestions merged.
+      out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 1, N);
+      for (int j = 2; j <= N && out.status == DiagnosisStatus::kOk; ++j) {
+        Diagnosis joint = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, j, N);
+        if (joint.status != DiagnosisStatus::kOk) return joint;
+        out.joints[static_cast<size_t>(j - 1)].refit_rms = joint.joints[static_cast<size_t>(j - 1)].refit_rms;
+        out.joints[static_cast<size_t>(j - 1)].noise_std_estimate =
+            joint.joints[static_cast<size_t>(j - 1)].noise_std_estimate;
+        out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
+                               joint.suggestions.end());
+      }
+      std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
+                       [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
+      if (static_cast<int>(out.suggestions.size()) > options.max_suggestions) {
+        out.suggestions.resize(static_cast<size_t>(options.max_suggestions));
+      }
+    }
+    if (out.status == DiagnosisStatus::kOk) {
+      if (options.training_inputs.size() != 0) {
+        MeasureCoverage(X, t, options.training_inputs, N, &out);
+      }
+      Conclude(options, &out);
     }
     return out;
   } catch (const std::invalid_argument&) {
@@ -671,6 +1154,11 @@ std::string ToJson(const Diagnosis& d) {
     jf["rms"] = f.rms;
     jf["nmse"] = f.nmse;
     jf["noise_std_estimate"] = f.noise_std_estimate;
+    jf["refit_rms"] = f.refit_rms;
+    if (f.max_distance >= 0) {
+      jf["outside_fraction"] = f.outside_fraction;
+      jf["max_distance"] = f.max_distance;
+    }
     jf["concentrations"] = nlohmann::ordered_json::array();
     for (const auto& c : f.concentrations) {
       jf["concentrations"].push_back({{"variable", c.variable},
@@ -691,11 +1179,42 @@ std::string ToJson(const Diagnosis& d) {
     js["rms_after"] = s.rms_after;
     js["residual_rms_before"] = s.residual_rms_before;
     js["residual_rms_after"] = s.residual_rms_after;
+    js["score_uncorrected"] = s.score_uncorrected;
+    js["inflation"] = s.inflation;
+    js["effective_samples"] = s.effective_samples;
+    js["p_value"] = s.p_value;
+    js["adjusted_p_value"] = s.adjusted_p_value;
+    js["effect_rms"] = s.effect_rms;
+    js["effect_to_noise"] = s.effect_to_noise;
+    js["z"] = s.z;
+    js["confirmation"] = {{"method", s.confirmation},
+                          {"folds", s.confirmation_folds},
+                          {"gap", s.confirmation_gap},
+                          {"folds_improved", s.folds_improved},
+                          {"rms_before", s.rms_before},
+                          {"rms_after", s.rms_after}};
+    js["selection"] = s.selection;
     js["params"] = nlohmann::ordered_json::object();
     for (const auto& [k, v] : s.params) js["params"][k] = v;
     js["spec"] = s.spec;
     j["suggestions"].push_back(js);
   }
+  nlohmann::ordered_json c;
+  c["verdict"] = ToString(d.coverage.verdict);
+  c["message"] = d.coverage.message;
+  c["coverage_joints"] = d.coverage.coverage_joints;
+  if (d.coverage.distance.size() != 0) {
+    c["distance_time"] = std::vector<double>(d.coverage.distance_time.data(),
+                                             d.coverage.distance_time.data() +
+                                                 d.coverage.distance_time.size());
+    c["distance"] = nlohmann::ordered_json::array();
+    for (int r = 0; r < d.coverage.distance.rows(); ++r) {
+      std::vector<double> row(static_cast<size_t>(d.coverage.distance.cols()));
+      for (int k = 0; k < d.coverage.distance.cols(); ++k) row[static_cast<size_t>(k)] = d.coverage.distance(r, k);
+      c["distance"].push_back(row);
+    }
+  }
+  j["coverage"] = c;
   return j.dump(2) + "\n";
 }
 

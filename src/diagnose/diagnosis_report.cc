@@ -42,8 +42,11 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
     os << "the diagnosis failed (" << ToString(d.status) << "): " << d.message << "\n";
     return os.str();
   }
-  std::vector<std::vector<std::string>> rows = {
-      {"joint", "RMS", "nMSE", "noise est.", "error concentrates along"}};
+  const bool distances = !d.joints.empty() && d.joints.front().max_distance >= 0;
+  std::vector<std::string> header = {"joint", "RMS", "nMSE", "noise est.", "refit RMS"};
+  if (distances) header.push_back("outside training");
+  header.push_back("error concentrates along");
+  std::vector<std::vector<std::string>> rows = {header};
   for (const JointFinding& f : d.joints) {
     std::string where = "-";
     if (!f.concentrations.empty() && f.concentrations.front().explained >= kMinExplained) {
@@ -52,15 +55,29 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
           Format("%s (explains %.0f%%; worst bin %s in [%.3g, %.3g], RMS %.3g)", c.variable.c_str(),
                  100.0 * c.explained, c.variable.c_str(), c.bin_low, c.bin_high, c.bin_rms);
     }
-    rows.push_back({std::to_string(f.joint), Format("%.4g", f.rms), Format("%.4g", f.nmse),
-                    Format("%.4g", f.noise_std_estimate), where});
+    std::vector<std::string> row = {std::to_string(f.joint), Format("%.4g", f.rms),
+                                    Format("%.4g", f.nmse), Format("%.4g", f.noise_std_estimate),
+                                    Format("%.4g", f.refit_rms)};
+    if (distances) {
+      row.push_back(Format("%.0f%% (up to %.2g sd)", 100.0 * f.outside_fraction, f.max_distance));
+    }
+    row.push_back(where);
+    rows.push_back(row);
   }
   os << Table(rows);
+  os << "verdict: " << ToString(d.coverage.verdict) << ": " << d.coverage.message << "\n";
   if (d.suggestions.empty()) {
     os << Format(
-        "no missing effect found: no candidate gains %.0f nats of evidence and cuts "
-        "the held-out RMS by %.0f%% on any joint\n",
-        options.min_log_evidence_gain, 100.0 * options.min_relative_rms_gain);
+        "no missing effect found: no candidate gains %.0f nats of evidence after the "
+        "autocorrelation correction, passes the %s test at %.2g, lowers the joint's residual by "
+        "%.0f%% with a change of %.2g times the noise, and cuts the held-out RMS by %.0f%%\n",
+        options.min_log_evidence_gain,
+        options.multiplicity == DiagnosisOptions::Multiplicity::kHolm ? "Holm"
+        : options.multiplicity == DiagnosisOptions::Multiplicity::kBenjaminiHochberg
+            ? "Benjamini-Hochberg"
+            : "uncorrected",
+        options.significance, 100.0 * options.min_residual_fall, options.min_effect_to_noise,
+        100.0 * options.min_relative_rms_gain);
     return os.str();
   }
   const std::string existing = ToString(spec.effects);
@@ -69,11 +86,18 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
     return text.find_first_of("; ") == std::string::npos ? text : "'" + text + "'";
   };
   for (const Suggestion& s : d.suggestions) {
+    const std::string unseen =
+        s.confirmation == "trajectories"
+            ? Format("leave one trajectory out, %d folds", s.confirmation_folds)
+            : Format("%d contiguous blocks, gap %d rows", s.confirmation_folds, s.confirmation_gap);
     os << Format(
-        "joint %d: missing %s (evidence %+.0f nats): residual RMS %.3g -> %.3g, held-out "
-        "RMS (%d contiguous blocks) %.3g -> %.3g; add with --effects %s\n",
-        s.joint, DescribeEffect(s).c_str(), s.score, s.residual_rms_before, s.residual_rms_after,
-        options.folds, s.rms_before, s.rms_after,
+        "joint %d: missing %s (evidence %+.0f nats, %.0f without the autocorrelation "
+        "correction; adjusted p %.2g; %.1f times the noise%s): residual RMS %.3g -> %.3g, "
+        "held-out RMS (%s; better in %d) %.3g -> %.3g; add with --effects %s\n",
+        s.joint, DescribeEffect(s).c_str(), s.score, s.score_uncorrected, s.adjusted_p_value,
+        s.effect_to_noise, s.selection == "joint" ? "; chosen with the joint's other friction" : "",
+        s.residual_rms_before, s.residual_rms_after, unseen.c_str(), s.folds_improved,
+        s.rms_before, s.rms_after,
         shell_word((existing.empty() ? "" : existing + ",") + s.spec).c_str());
   }
   return os.str();

@@ -9,15 +9,32 @@
 /// residual concentrates.
 ///
 /// Which effect is missing: every candidate effect (effects.h) on every joint is added to the
-/// model's own features with a broad prior, and scored by the gain in log marginal likelihood
-/// of that joint's torque on the data (exact, by a Schur complement on the model's factor:
-/// O(D^2 k) per candidate) and by blocked cross-validation on contiguous folds (the RMS it
-/// would leave). A candidate is suggested only when both say so: the evidence gain exceeds
-/// DiagnosisOptions::min_log_evidence_gain and the held-out RMS falls by at least
-/// min_relative_rms_gain. Suggestions are chosen greedily (after the best is added, the others
-/// are scored again), so two names for one effect are not both suggested. Effects that the
-/// model already spans (a sinusoidal spring or a payload under pol) gain nothing and are not
-/// suggested. Each effect proposes its own parameters from the residual of a refit
+/// model's own features with a broad prior and scored on the data (docs/diagnosis.md):
+/// - the gain in log marginal likelihood of that joint's torque (exact, by a Schur complement
+///   on the model's factor: O(D^2 k) per candidate), with its data term divided by the
+///   inflation that autocorrelated residuals cause (Bartlett's formula for the variance of a
+///   cross-correlation: 1 + 2 sum_k w_k rho_r(k) rho_e(k), the residual's and the candidate's
+///   autocorrelations), so that a 1 kHz log counts as its effective number of samples;
+/// - a p-value from that calibrated statistic (chi-square with as many degrees of freedom as
+///   the effect has bases), controlled across every candidate on every joint (Holm, or
+///   Benjamini-Hochberg);
+/// - an effect size: the effect must lower the joint's residual on the log by
+///   min_residual_fall and change its fitted torque by min_effect_to_noise times the noise;
+/// - confirmation on unseen data: the held-out RMS of the joint by leave-one-trajectory-out
+///   when the log has enough trajectories, else by contiguous blocks with a gap on each side
+///   (rows too correlated with the block to count as unseen are left out of its fit).
+/// A candidate is suggested only when all of them say so. Suggestions are chosen greedily
+/// (after the best is added, the others are scored again); then, per joint, the friction-like
+/// effects that passed (viscous, Coulomb, Stribeck, drift, offset) are also chosen jointly,
+/// and the joint set replaces the greedy one when it is better on unseen data.
+///
+/// Before any effect: the model's error on the log is compared with the error of the model
+/// refitted on the log (CoverageFinding). When the refit reaches the noise, the model class
+/// explains the log and what is wrong is the training data's coverage of these motions, not a
+/// missing effect; with the training inputs (DiagnosisOptions::training_inputs) the finding
+/// also says where the log leaves the training states.
+///
+/// Each effect proposes its own parameters from the residual of a refit
 /// (Effect::ProposeParameters: cogging period, Stribeck velocity, drift time origin and span),
 /// so a user's registered effect gets parameter estimation too; effects the model contains
 /// (same name on the joint, or a block of Effect::spanned_by) are not tried.
@@ -38,10 +55,55 @@ struct DiagnosisOptions {
   std::vector<std::string> candidates;
   /// Contiguous folds of the blocked cross-validation.
   int folds = 5;
-  /// Minimum gain in log evidence of the joint's torque, nats (about e^10 : 1 odds).
+  /// Minimum gain in log evidence of the joint's torque, nats (about e^10 : 1 odds), after
+  /// the autocorrelation correction.
   double min_log_evidence_gain = 10.0;
-  /// Minimum relative fall of the held-out RMS of the joint.
+  /// Minimum relative fall of the held-out RMS of the joint (the confirmation on unseen data).
   double min_relative_rms_gain = 0.02;
+  /// Family-wise error rate (Holm) or false discovery rate (Benjamini-Hochberg) over every
+  /// candidate on every joint.
+  double significance = 0.01;
+  enum class Multiplicity { kHolm, kBenjaminiHochberg, kNone };
+  Multiplicity multiplicity = Multiplicity::kHolm;
+  /// Correct the evidence for autocorrelated residuals (Bartlett). Off: every row counts as an
+  /// independent sample, which is overconfident on logs sampled faster than their residual
+  /// decorrelates.
+  bool autocorrelation_correction = true;
+  /// Minimum relative fall of the joint's residual RMS on the log (model refitted there without
+  /// and with the effect).
+  double min_residual_fall = 0.03;
+  /// Minimum RMS of the change the effect makes to the joint's fitted torque, in units of the
+  /// joint's noise level (noise_std_estimate).
+  double min_effect_to_noise = 0.3;
+  /// An effect that lowers the held-out RMS by this fraction passes the two bars above
+  /// without them: a model refitted on the log (pol on its own training log) can absorb an
+  /// effect in sample that it cannot predict out of sample.
+  double held_out_fall_alone = 0.25;
+  /// Minimum size of the effect against its posterior standard deviation (the square root of
+  /// the calibrated chi-square statistic).
+  double min_effect_z = 4.0;
+  /// Rows left out on each side of a held-out block (same trajectory only); -1: the residual's
+  /// correlation length (first lag where its autocorrelation falls below 0.1), at most half a
+  /// block.
+  int confirmation_gap = -1;
+  /// The coverage finding: a joint's error is "coverage" when the model's RMS on the log
+  /// exceeds coverage_ratio times the RMS of the model refitted on the log, and that refit
+  /// reaches noise_tolerance times the noise.
+  double coverage_ratio = 2.0;
+  double noise_tolerance = 1.3;
+  /// The data the model was trained on, optional (in time order, as the log).
+  /// training_inputs alone (rows x at least 3 N columns: q, qd, qdd): the coverage finding
+  /// measures how far each row of the log is from the training states (at most 2,000 of them,
+  /// evenly spaced, are used).
+  /// With training_targets too (training_inputs then with the model's input columns, and
+  /// training_times when the log has times): the candidates are scored, and the model refitted
+  /// for refit_rms and the verdict, on the training rows and the log together, as separate
+  /// trajectories. A model as rich as pol refitted on one log alone can bend along that one
+  /// path to absorb an effect (viscous friction on a single trajectory is some function of the
+  /// state along it); it cannot across slow and fast motion, so this is the sharper test.
+  Matrix training_inputs;
+  Matrix training_targets;
+  Vector training_times;
   /// At most this many suggestions.
   int max_suggestions = 6;
   /// Quantile bins for "where the error concentrates".
@@ -74,6 +136,13 @@ struct JointFinding {
   double rms = 0;                   ///< residual RMS of the model on the data
   double nmse = 0;                  ///< residual MSE / variance of the torque
   double noise_std_estimate = 0;    ///< from successive differences of the residual
+  /// Residual RMS of the model refitted on these data (its features and prior, no effect):
+  /// near noise_std_estimate when the model class explains the log.
+  double refit_rms = 0;
+  /// With DiagnosisOptions::training_inputs: the fraction of the log's rows whose distance
+  /// to the training states (below) exceeds 1, and the largest distance; -1 without.
+  double outside_fraction = -1;
+  double max_distance = -1;
   std::vector<Concentration> concentrations;  ///< strongest first (at most 3)
 };
 
@@ -90,9 +159,67 @@ struct Suggestion {
   double residual_rms_before = 0;
   double residual_rms_after = 0;
   std::map<std::string, double> params;  ///< every parameter of the effect (as estimated)
+  /// Calibration (docs/diagnosis.md): score_uncorrected is the gain with every row an
+  /// independent sample; inflation = rows / effective_samples (>= 1) the factor by which
+  /// autocorrelation overstates it; p_value from the calibrated chi-square statistic,
+  /// adjusted_p_value after the multiplicity correction.
+  double score_uncorrected = 0;
+  double inflation = 1;
+  double effective_samples = 0;
+  double p_value = 1;
+  double adjusted_p_value = 1;
+  /// Effect size: RMS of the change the effect makes to the joint's fitted torque, and that
+  /// over the joint's noise level; z: the effect against its posterior std (calibrated).
+  double effect_rms = 0;
+  double effect_to_noise = 0;
+  double z = 0;
+  /// How rms_before / rms_after were confirmed on unseen data: "trajectories" (leave one
+  /// trajectory out) or "blocks" (contiguous blocks with confirmation_gap rows left out on each
+  /// side); folds, the gap, and in how many folds the effect lowered the held-out error.
+  std::string confirmation;
+  int confirmation_folds = 0;
+  int confirmation_gap = 0;
+  int folds_improved = 0;
+  /// "greedy" (chosen one at a time) or "joint" (chosen together with the joint's other
+  /// friction-like effects, because the set is better on unseen data than the greedy choice).
+  std::string selection = "greedy";
+  /// The joint's residual on every row of the log, the model refitted there without and with
+  /// the effect (with the suggestions chosen before it in both): what the report plots against
+  /// q and qd. Not written to FINDINGS.json.
+  Vector residual_before_rows, residual_after_rows;
   /// The text to add to --effects, e.g. "cogging@3:period=0.3": ParseEffectList(spec) gives
   /// back this effect on this joint, with these params.
   std::string spec;
+};
+
+/// What the model's error on the log is about (Diagnosis::coverage).
+enum class Verdict {
+  /// The model predicts the log to the noise on every joint: nothing to fix.
+  kExplained,
+  /// The model class explains the log (refitted on it, it reaches the noise) but the model
+  /// does not: the training data did not cover these motions. Retrain with them; no effect is
+  /// missing.
+  kCoverage,
+  /// Effects were suggested.
+  kMissingEffect,
+  /// The refit does not reach the noise on some joint, and no candidate effect explains it.
+  kUnexplained,
+};
+
+/// "explained", "coverage", "missing_effect", "unexplained".
+const char* ToString(Verdict verdict);
+
+/// Where the log leaves the training data (FINDINGS.json "coverage").
+struct CoverageFinding {
+  Verdict verdict = Verdict::kExplained;
+  std::string message;             ///< one sentence for people
+  std::vector<int> coverage_joints;  ///< 1-based joints whose error is coverage, not physics
+  /// With DiagnosisOptions::training_inputs: distance of the log's rows to the nearest training
+  /// state, per joint in the joint's standardised (q, qd, qdd) (1 = one training standard
+  /// deviation away), decimated in time to at most 400 points (the largest distance of each
+  /// stretch of rows): time (or row index without times) and distances (points x N).
+  Vector distance_time;
+  Matrix distance;
 };
 
 /// How a diagnosis ended.
@@ -121,6 +248,7 @@ struct Diagnosis {
   /// Relative noise level sigma_n found by evidence on these data (noise of joint j is
   /// noise_std times the joint's output scale).
   double noise_std = 0;
+  CoverageFinding coverage;
 };
 
 /// Diagnoses a fitted model on data X (m x model.input_dim()),
