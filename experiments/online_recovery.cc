@@ -28,8 +28,10 @@
 // last cycle (5 s) before the change. Smoothed error at time s: the level over [s, s + 0.5 s).
 // Time to recover: the smallest tau (10 ms grid) after the change (payload: the pickup; drift:
 // the end of the ramp) from which the smoothed error stays within 1.2x the steady level for
-// 1 s (or to the end of the log); "not recovered" when there is none. Also the peak smoothed
-// error after the change and the level over the last cycle of the log.
+// 1 s (the hold inside the log); "not recovered" when there is none, "diverged before the
+// change" when the steady level is above 3x that of the same model without forgetting (the
+// setting never learned the arm: covariance wind-up). Also the peak smoothed error after the
+// change and the level over the last cycle of the log.
 
 #include <algorithm>
 #include <chrono>
@@ -83,6 +85,10 @@ constexpr double kWindow = 0.5;     // s, smoothing window
 constexpr double kGrid = 0.01;      // s
 constexpr double kHold = 1.0;       // s the smoothed error must stay within the bound
 constexpr double kRecoveredFactor = 1.2;
+// A steady level above this multiple of the model's without forgetting marks the setting as
+// diverged before the change (Recovery::time = kDiverged).
+constexpr double kDivergedFactor = 3.0;
+constexpr double kDiverged = -2.0;
 // Offline log of the Nystrom model.
 constexpr double kOfflineSeconds = 60.0;
 constexpr double kOfflineDt = 0.02;
@@ -361,7 +367,7 @@ struct Recovery {
   double steady = 0.0;      // level over the cycle before the change
   double peak = 0.0;        // largest smoothed error after the change
   double final_level = 0.0; // level over the last cycle
-  double time = -1.0;       // s after `settled`; < 0: not recovered
+  double time = -1.0;       // s after `settled`; -1: not recovered; kDiverged
 };
 
 Recovery Measure(const Trace& run, const Log& log) {
@@ -465,11 +471,17 @@ int Run(Flags f, int argc, char** argv) {
   for (const std::string& scenario : f.scenarios) {
     const Log log = MakeLog(world, task, scenario);
     for (const std::string& model : f.models) {
+      double reference_steady = HUGE_VAL;
       for (const Setting& s : Settings(f)) {
         Trace run = model == "rbd+fri" ? RunRbd(world, log, s) : RunNystrom(nys, log, s);
-        const Recovery r = Measure(run, log);
-        const std::string time =
-            r.time < 0 ? "not recovered" : Format("%.2f s", r.time);
+        Recovery r = Measure(run, log);
+        if (s.name == "none") reference_steady = r.steady;
+        // A setting whose error before the change is far above the same model's without
+        // forgetting has not learned the arm (wind-up): no recovery time to report.
+        if (r.steady > kDivergedFactor * reference_steady) r.time = kDiverged;
+        const std::string time = r.time == kDiverged ? "diverged before the change"
+                                 : r.time < 0        ? "not recovered"
+                                                     : Format("%.2f s", r.time);
         std::printf("| %s | %s | %s | %.3g | %.3g | %s | %.3g | %.0f / %.0f | %.0f / %.0f |%s\n",
                     scenario.c_str(), model.c_str(), s.name.c_str(), r.steady, r.peak,
                     time.c_str(), r.final_level, run.update_p50, run.update_p99, run.predict_p50,
