@@ -479,7 +479,8 @@ constexpr int kFeatures = 512;
 // Prior variance of the friction weights of nys, in units of s_j^2: std 10 torque scales.
 constexpr double kNystromFrictionPrior = 100.0;
 constexpr std::uint64_t kUrdfSeed = 5;
-// A tracking error beyond this (rad) on any joint ends the run as diverged.
+// A tracking error beyond this (rad) on any joint stops the run, as a robot's safety limit
+// would (the table reports when).
 constexpr double kDivergedError = 1.0;
 
 Vector ReadyPose() {
@@ -713,8 +714,8 @@ Result Simulate(Mode mode, const Plant& p, const Model* model, double trust_frac
   }
   if (r.diverged_at >= 0.0) {
     char b[96];
-    std::snprintf(b, sizeof(b), "diverged at t = %.3f s (error > %g rad)", r.diverged_at,
-                  kDivergedError);
+    std::snprintf(b, sizeof(b), "stopped at t = %.3f s: tracking error above %g rad",
+                  r.diverged_at, kDivergedError);
     r.note = b;
     r.rms = Vector::Constant(kN, std::nan(""));
     r.total = r.first_second = r.last_second = std::nan("");
@@ -794,6 +795,11 @@ int Main(const std::string& out_dir, double seconds, bool threaded, double trust
     if (r.update_p50 > 0) {
       std::snprintf(update, sizeof(update), "%.0f / %.0f / %.0f", r.update_p50, r.update_p99,
                     r.update_max);
+    }
+    if (r.diverged_at >= 0.0) {
+      std::printf("| %s | %s | stopped at %.3f s: error > %g rad | - | - | - | - | - |\n",
+                  r.model.c_str(), Name(r.mode), r.diverged_at, kDivergedError);
+      continue;
     }
     std::printf("| %s | %s | %s | %.3g | %.3g | %.3g | %s | %s |\n", r.model.c_str(), Name(r.mode),
                 joints.c_str(), 1e3 * r.total, 1e3 * r.first_second, 1e3 * r.last_second, timing,
