@@ -77,12 +77,15 @@ constexpr double kTorqueNoise = 0.02;
 // Default predictive standard deviation (N m) at which (d) halves the feedforward.
 constexpr double kDefaultTrustStd = 1.0;
 
-enum class Mode { kPd, kOffline, kOnline, kOnlineVariance, kThreaded };
+// kPrior (panda only): the feedforward of the model's prior mean (rbd: the URDF), not learning.
+enum class Mode { kPd, kPrior, kOffline, kOnline, kOnlineVariance, kThreaded };
 
 const char* Name(Mode mode) {
   switch (mode) {
     case Mode::kPd:
       return "(a) PD only";
+    case Mode::kPrior:
+      return "(a') PD + prior mean (the URDF)";
     case Mode::kOffline:
       return "(b) PD + offline model";
     case Mode::kOnline:
@@ -99,6 +102,8 @@ const char* Key(Mode mode) {
   switch (mode) {
     case Mode::kPd:
       return "pd";
+    case Mode::kPrior:
+      return "prior";
     case Mode::kOffline:
       return "offline";
     case Mode::kOnline:
@@ -236,6 +241,8 @@ Run Simulate(Mode mode, const Setup& s, bool paced, double trust_variance) {
         learner->Predict(x_ref, mean);
         ff = mean;
         break;
+      case Mode::kPrior:  // the panda's runs only
+        break;
     }
     if (mode != Mode::kPd && mode != Mode::kOffline) {
       compute_us.push_back(1e6 * std::chrono::duration<double>(Clock::now() - t0).count());
@@ -356,6 +363,8 @@ const char* Colour(Mode mode) {
   switch (mode) {
     case Mode::kPd:
       return "#7f7f7f";
+    case Mode::kPrior:
+      return "#9467bd";
     case Mode::kOffline:
       return "#1f77b4";
     case Mode::kOnline:
@@ -772,8 +781,10 @@ int Main(const std::string& out_dir, double seconds, bool threaded, double trust
   std::vector<Result> results;
   results.push_back(Simulate(Mode::kPd, plant, nullptr, trust_fraction));
   for (const Model& m : built) {
-    for (const Mode mode : {Mode::kOffline, Mode::kOnline, Mode::kOnlineVariance, Mode::kThreaded}) {
+    for (const Mode mode : {Mode::kPrior, Mode::kOffline, Mode::kOnline, Mode::kOnlineVariance,
+                            Mode::kThreaded}) {
       if (mode == Mode::kThreaded && !threaded) continue;
+      if (mode == Mode::kPrior && m.key != "rbd") continue;  // nys: zero, PD only
       results.push_back(Simulate(mode, plant, &m, trust_fraction));
     }
   }
