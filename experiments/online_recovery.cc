@@ -428,10 +428,22 @@ int Run(Flags f, int argc, char** argv) {
                                   Format("%g", l));
     }
   }
+  for (double w : f.window_seconds) {
+    if (!(w >= kDt)) {
+      throw std::invalid_argument("--window: expected windows of at least 0.001 s, got " +
+                                  Format("%g", w));
+    }
+  }
   for (const std::string& m : f.models) {
     if (m != "rbd+fri" && m != "nys+fri") {
       throw std::invalid_argument("--models: unknown model '" + m +
                                   "' (expected rbd+fri, nys+fri)");
+    }
+  }
+  for (const std::string& c : f.scenarios) {
+    if (c != "payload" && c != "drift") {
+      throw std::invalid_argument("--scenarios: unknown scenario '" + c +
+                                  "' (expected payload, drift)");
     }
   }
   const sim::Trajectory task =
