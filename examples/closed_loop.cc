@@ -18,6 +18,7 @@
 //
 //   build/examples/closed_loop [out_dir] [--no-threaded] [--seconds S] [--trust-std N_m]
 //   build/examples/closed_loop [out_dir] --robot panda [--models rbd,nys] [--trust-fraction F]
+//       [--model-noise F]
 //
 // With --robot panda the same runs on the 7-joint Panda (see "the 7-joint loop" below) with
 // rbd+fri from a +-30% wrong URDF and Nystrom k_pol + friction, each through the OnlineLearner,
@@ -560,7 +561,7 @@ Plant MakePlant(double seconds) {
   return p;
 }
 
-Model MakeRbd(const Plant& p, const structgp::sim::Dataset& excitation) {
+Model MakeRbd(const Plant& p, const structgp::sim::Dataset& excitation, double model_noise) {
   structgp::RigidBodyChain chain = structgp::RigidBodyChain::FromUrdfString(
       structgp::sim::ToUrdf(p.robot), {}, "panda.urdf");
   std::mt19937_64 rng(kUrdfSeed);
@@ -572,7 +573,7 @@ Model MakeRbd(const Plant& p, const structgp::sim::Dataset& excitation) {
   ro.friction_width = kWidth;
   structgp::RobotModel model(structgp::ParseModelSpec("rbd+fri"), kN, ro);
   structgp::Hyperparameters h = model.DefaultHyperparameters(excitation.Y);
-  h.log_noise_std = std::log(kTorqueNoise);
+  h.log_noise_std = std::log(model_noise);
   h.log_output_scale = p.scale.array().log().matrix();
   Model m;
   m.key = "rbd";
@@ -608,14 +609,15 @@ std::shared_ptr<const structgp::FeatureMap> NystromMap(const Matrix& candidates)
           std::make_shared<const structgp::FrictionFeatureMap>(kN, kWidth)});
 }
 
-Model MakeNystrom(const Plant& p, const structgp::sim::Dataset& excitation) {
+Model MakeNystrom(const Plant& p, const structgp::sim::Dataset& excitation,
+                  double model_noise) {
   const auto options = [&](std::shared_ptr<const structgp::FeatureMap> map) {
     structgp::OnlineLearnerOptions o;
     o.feature_map = map;
     o.num_outputs = kN;
     o.prior_variance = Vector::Ones(map->dim());
     o.prior_variance.tail(2 * kN + 1).setConstant(kNystromFrictionPrior);
-    o.noise_variance = kTorqueNoise * kTorqueNoise;
+    o.noise_variance = model_noise * model_noise;
     o.output_scales = p.scale;
     return o;
   };
@@ -754,7 +756,7 @@ Result Simulate(Mode mode, const Plant& p, const Model* model, double trust_frac
 }
 
 int Main(const std::string& out_dir, double seconds, bool threaded, double trust_fraction,
-         const std::vector<std::string>& models) {
+         const std::vector<std::string>& models, double model_noise) {
   const Plant plant = MakePlant(seconds);
   const structgp::sim::Dataset excitation = Excitation(plant);
   std::printf("panda (7 joints, KDL), %g s at 1 kHz, reference 3 harmonics of %g Hz (+-%g rad)"
@@ -762,16 +764,17 @@ int Main(const std::string& out_dir, double seconds, bool threaded, double trust
   for (int j = 0; j < kN; ++j) std::printf(" %.3g", plant.kp[j]);
   std::printf(" N m/rad; Kd:");
   for (int j = 0; j < kN; ++j) std::printf(" %.3g", plant.kd[j]);
-  std::printf(" N m s/rad\ntorque scales (N m):");
+  std::printf(" N m s/rad\nmodels' noise std %.3g of each joint's torque scale (the torque "
+              "sensor's: %.3g)\ntorque scales (N m):", model_noise, kTorqueNoise);
   for (int j = 0; j < kN; ++j) std::printf(" %.3g", plant.scale[j]);
   std::printf("\n");
   std::vector<Model> built;
   for (const std::string& key : models) {
     const auto t0 = Clock::now();
     if (key == "rbd") {
-      built.push_back(MakeRbd(plant, excitation));
+      built.push_back(MakeRbd(plant, excitation, model_noise));
     } else if (key == "nys") {
-      built.push_back(MakeNystrom(plant, excitation));
+      built.push_back(MakeNystrom(plant, excitation, model_noise));
     } else {
       throw std::invalid_argument("--models: unknown model '" + key + "' (expected rbd, nys)");
     }
@@ -859,6 +862,7 @@ int main(int argc, char** argv) {
   std::string robot = "two_link";
   std::vector<std::string> models = {"rbd", "nys"};
   double trust_fraction = 0.1;
+  double model_noise = panda::kTorqueNoise;
   CLI::App app("Learned feedforward in a simulated 1 kHz control loop.", "closed_loop");
   app.add_option("--robot", robot, "two_link (k_pol + friction, D = 138) or panda (7 joints)")
       ->check(CLI::IsMember({"two_link", "panda"}))
@@ -877,6 +881,10 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", seconds, "simulated seconds, 1..600")->capture_default_str();
   app.add_option("--trust-std", trust_std,
                  "N m: predictive std at which the variance-scaled feedforward halves")
+      ->capture_default_str();
+  app.add_option("--model-noise", model_noise,
+                 "panda: the models' noise std, as a fraction of each joint's torque scale "
+                 "(default: the torque sensor's)")
       ->capture_default_str();
   try {
     app.parse(argc, argv);
@@ -898,11 +906,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "closed_loop: --trust-fraction must be > 0, got %g\n", trust_fraction);
     return 2;
   }
+  if (!(model_noise > 0.0)) {
+    std::fprintf(stderr, "closed_loop: --model-noise must be > 0, got %g\n", model_noise);
+    return 2;
+  }
   seconds = std::floor(seconds);
   if (robot == "panda") {
     try {
       std::filesystem::create_directories(out_dir);
-      return panda::Main(out_dir, seconds, threaded, trust_fraction, models);
+      return panda::Main(out_dir, seconds, threaded, trust_fraction, models, model_noise);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "closed_loop: %s\n", e.what());
       return 1;
