@@ -2,7 +2,7 @@
 // one-step-ahead error of an online model is back at its level before the change
 // (docs/online.md, section "Recovery at 7 joints").
 //
-//   build/experiments/online_recovery            (full run, ~6 min on one core)
+//   build/experiments/online_recovery            (full run: 10-15 min on a shared 2-vCPU VM)
 //   build/experiments/online_recovery --quick --check   (CI size, the ctest)
 //
 // Robot: sim::Panda (KDL), with joint friction (Coulomb 10% and viscous 5% of each joint's RMS
