@@ -479,15 +479,27 @@ TEST(CliReplay, FromAModelAndFromZeroOnALogWithTrajectoryRestarts) {
             0);
   const std::string json = dir.File("replay.json"), errors = dir.File("errors.csv"),
                     saved = dir.File("m2.json");
+  const std::string report = dir.File("replay.html");
   const Result r = RunCli(dir, {"replay", "--data", logs.trajectories, "--model", model,
                                 "--forgetting", "0.999", "--out", errors, "--json", json,
-                                "--save", saved});
+                                "--save", saved, "--report", report});
   ASSERT_EQ(r.code, 0) << r.err;
+  // The report: one plot of the one-step-ahead error over time per joint, with every step.
+  const std::string html = ReadFile(report);
+  EXPECT_TRUE(Contains(html, "<html")) << "replay.html";
+  for (const char* joint : {"1", "2"}) {
+    EXPECT_TRUE(Contains(html, std::string("\"title\":\"Joint ") + joint +
+                                   ": one-step-ahead error over time\""))
+        << joint;
+  }
   EXPECT_TRUE(Contains(r.out, "3 trajectories")) << r.out;
   const Json doc = Json::parse(ReadFile(json));
   const std::string rows = ReadFile(errors);
   const long steps = doc["steps"];
   EXPECT_EQ(static_cast<long>(CountLines(rows)), steps + 1);
+  EXPECT_TRUE(Contains(html, "\"label\":\"measured - one-step-ahead prediction\",\"role\":"
+                             "\"prediction\",\"samples\":" + std::to_string(steps)))
+      << "the error series has every step";
   EXPECT_EQ(doc["trajectories"], 3);
   EXPECT_EQ(doc["bad_samples"], 0);
   EXPECT_EQ(doc["form"], "weight_space");

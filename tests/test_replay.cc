@@ -2,7 +2,8 @@
 // On a stationary log the one-step-ahead error falls as the model learns (weight space, pol on
 // the KDL-simulated two-link arm); after a 2 kg payload appears mid-log, rbd with forgetting
 // brings the error back to the noise while rbd without forgetting stays biased; the learned
-// model returned equals the learner's last state; bad input is refused by name.
+// model returned equals the learner's last state; bad input is refused by name; the replay's
+// report plots each joint's one-step-ahead error over time, sample for sample.
 
 #include <gtest/gtest.h>
 
@@ -15,6 +16,8 @@
 
 #include "structgp/model/robot_model.h"
 #include "structgp/online/replay.h"
+#include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/robot.h"
@@ -176,6 +179,62 @@ TEST(Replay, TrajectoryRestartsAreSegments) {
   EXPECT_EQ(s.segment_starts[1], 200);
   EXPECT_EQ(s.segment_starts[2], 400);
   EXPECT_EQ(s.steps, 600);
+}
+
+// The report of a replay: per joint a plot "one-step-ahead error over time" whose values are
+// the replay's errors (the data are under the thinning limit, so every sample is drawn), the
+// prediction series = measured - error, the first/last fifth errors; a summary that does not
+// belong to the data is refused.
+TEST(Replay, ReportPlotsTheOneStepErrorOverTime) {
+  const PayloadLog log = MakePayloadLog(600, 0.05);
+  RobotModelOptions ro;
+  ro.rigid_body = log.nominal;
+  const RobotModel model(ParseModelSpec("rbd"), 3, ro);
+  ReplayOptions o;
+  o.forgetting = 0.99;
+  const ReplaySummary s = Replay(model, log.X, log.Y, log.t, o);
+  RobotData data;
+  data.num_joints = 3;
+  data.X = log.X;
+  data.Y = log.Y;
+  data.t = log.t;
+  data.source = "payload.csv";
+  const report::ReportData r = report::ReplayReportData(s, data, "rbd from zero");
+  ASSERT_EQ(r.joints.size(), 3u);
+  ASSERT_EQ(r.errors.size(), 2u);
+  for (int j = 0; j < 3; ++j) {
+    const report::JointData& jd = r.joints[static_cast<size_t>(j)];
+    ASSERT_EQ(jd.signal_plots.size(), 1u);
+    ASSERT_EQ(jd.signal_plots[0].series.size(), 1u);
+    const std::vector<double>& e = jd.signal_plots[0].series[0].values;
+    ASSERT_EQ(e.size(), 600u);
+    ASSERT_EQ(jd.predictions.size(), 1u);
+    for (int i = 0; i < 600; ++i) {
+      ASSERT_EQ(e[static_cast<size_t>(i)], s.errors(i, j)) << "joint " << j + 1 << " row " << i;
+      EXPECT_DOUBLE_EQ(jd.predictions[0].mean[static_cast<size_t>(i)] + e[static_cast<size_t>(i)],
+                       log.Y(i, j));
+    }
+    // The report's last-fifth RMS is the replay's.
+    EXPECT_NEAR(r.errors[1].rms[static_cast<size_t>(j)], s.rms_last_fifth[j],
+                1e-12 * s.rms_last_fifth[j]);
+  }
+  const std::string html = report::RenderHtml(r);
+  for (int j = 1; j <= 3; ++j) {
+    const std::string title =
+        "\"title\":\"Joint " + std::to_string(j) + ": one-step-ahead error over time\"";
+    EXPECT_NE(html.find(title), std::string::npos) << title;
+  }
+  EXPECT_NE(html.find("last fifth of the steps"), std::string::npos);
+  EXPECT_EQ(html.find("http://"), std::string::npos);
+  EXPECT_EQ(html.find("https://"), std::string::npos);
+  // A summary of another log is refused.
+  RobotData shorter = data.Rows(0, 500);
+  try {
+    report::ReplayReportData(s, shorter, "rbd");
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("expected 500 x 3"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Replay, BadInputIsRefusedByName) {

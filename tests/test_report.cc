@@ -355,6 +355,25 @@ TEST(Report, RejectsInconsistentInput) {
   EXPECT_THROW(RenderHtml(data), std::invalid_argument);
   data.joints[0].q.clear();  // empty is allowed: no residual-vs-q plot
   EXPECT_NO_THROW(RenderHtml(data));
+  // A signal over time must have one value per measured sample.
+  data.joints[0].signal_plots.push_back({"one-step-ahead error", "torque error",
+                                         {{"error", std::vector<double>(19, 0.0)}}});
+  try {
+    RenderHtml(data);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("the signal 'error' has 19 values, expected 20"),
+              std::string::npos)
+        << e.what();
+  }
+  data.joints[0].signal_plots[0].series[0].values.push_back(1.0);
+  const json plots = PlotData(RenderHtml(data))["plots"];
+  // The torque plot, then the signal plot (wide, with a zero line), then the residual vs qd.
+  ASSERT_GE(plots.size(), 2u);
+  EXPECT_EQ(plots[1]["title"], "Joint 1: one-step-ahead error");
+  EXPECT_EQ(plots[1]["zeroLine"], true);
+  EXPECT_EQ(plots[1]["series"][0]["y"].size(), 20u);
+  EXPECT_EQ(plots[1]["series"][0]["y"][19], 1.0);
 }
 
 // ---- headless browser -------------------------------------------------------------------------
@@ -516,13 +535,23 @@ TEST(ReportBrowser, RendersEveryPlotWithoutScriptErrors) {
   data.joints.push_back(MakeJoint(3, 2000, &rng));
   data.joints.back().predictions.clear();
   data.joints.back().t.clear();
+  // A signal over time on joint 1 (a replay's one-step-ahead error), with a gap.
+  {
+    TimeSeries error{"measured - one-step-ahead prediction", {}};
+    for (std::size_t i = 0; i < data.joints[0].measured.size(); ++i) {
+      error.values.push_back(data.joints[0].measured[i] - data.joints[0].predictions[0].mean[i]);
+    }
+    error.values[10] = std::numeric_limits<double>::quiet_NaN();
+    data.joints[0].signal_plots.push_back({"one-step-ahead error over time", "torque error",
+                                           {error}});
+  }
   const fs::path page = dir / "report.html";
   {
     std::ofstream out(page, std::ios::binary);
     out << RenderHtml(data, 1500);
     ASSERT_TRUE(out.good());
   }
-  const int num_plots = 3 + 3 + 1;
+  const int num_plots = 4 + 3 + 1;
 
   // 1. The DOM after the page's script has run, with its zoom/hover self-test.
   const int dom_status = RunChromium(chromium, dir, "file://" + page.string() + "#selftest",

@@ -12,6 +12,8 @@
 #include "common.h"
 #include "structgp/io/model_file.h"
 #include "structgp/online/replay.h"
+#include "structgp/report/report.h"
+#include "structgp/report/report_data.h"
 
 namespace structgp {
 namespace cli {
@@ -43,13 +45,16 @@ class ReplayCommand : public Command {
     cmd->add_option("--out", out_, "One-step-ahead error per joint and sample (CSV)");
     cmd->add_option("--save", save_, "Save the learned model (replaced atomically)");
     cmd->add_option("--json", json_, "Summary as JSON (replaced atomically)");
+    cmd->add_option("--report", report_,
+                    "HTML report: the one-step-ahead error per joint over time, measured vs "
+                    "predicted, the errors of the first and last fifth (self-contained)");
     AddRobotFlags(cmd, &robot_);
     cmd->footer(
         "Exactly one of --model and --model-spec. Rows are replayed in file order; a time\n"
         "that starts again begins a new trajectory (reported, the learner carries on).\n"
         "Example:\n"
         "  structgp replay --data log.csv --model model.json --forgetting 0.999 \\\n"
-        "      --out errors.csv --json replay.json --save model2.json");
+        "      --out errors.csv --json replay.json --save model2.json --report replay.html");
     return cmd;
   }
 
@@ -63,7 +68,8 @@ class ReplayCommand : public Command {
     }
     for (const auto& [flag, path] : {std::pair<std::string, std::string>{"--out", out_},
                                      {"--save", save_},
-                                     {"--json", json_}}) {
+                                     {"--json", json_},
+                                     {"--report", report_}}) {
       if (!path.empty()) CheckOutputPath(flag, path);
     }
     std::unique_ptr<RobotModel> start;
@@ -97,6 +103,12 @@ class ReplayCommand : public Command {
     if (!out_.empty()) files.push_back({"--out", out_, ErrorsCsv(s, data, N)});
     if (!json_.empty()) files.push_back({"--json", json_, Json(s, N).dump(2) + "\n"});
     if (!save_.empty()) files.push_back({"--save", save_, ModelFileText(*s.model)});
+    if (!report_.empty()) {
+      const std::string label =
+          ModelLabel(start->spec()) + (model_.empty() ? " from zero" : " from " + model_);
+      files.push_back(
+          {"--report", report_, report::RenderHtml(report::ReplayReportData(s, data, label))});
+    }
     WriteOutputs(files);
     for (const OutputFile& f : files) std::printf("wrote %s\n", f.path.c_str());
     return kExitOk;
@@ -151,7 +163,7 @@ class ReplayCommand : public Command {
     return doc;
   }
 
-  std::string data_, model_, spec_, effects_, out_, save_, json_;
+  std::string data_, model_, spec_, effects_, out_, save_, json_, report_;
   double forgetting_ = 1.0;
   int window_ = 0;
   RobotFlags robot_;

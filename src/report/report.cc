@@ -253,6 +253,11 @@ void CheckInput(const ReportData& data, int max_points_per_plot) {
       CheckLength(joint, "the mean of '" + p.label + "'", p.mean.size(), false);
       CheckLength(joint, "the std of '" + p.label + "'", p.std.size(), true);
     }
+    for (const SignalPlot& plot : joint.signal_plots) {
+      for (const TimeSeries& series : plot.series) {
+        CheckLength(joint, "the signal '" + series.label + "'", series.values.size(), false);
+      }
+    }
   }
   for (const ModelErrors& e : data.errors) {
     if (e.rms.size() != e.nmse.size()) {
@@ -265,9 +270,9 @@ void CheckInput(const ReportData& data, int max_points_per_plot) {
 
 // ---- plots of one joint -----------------------------------------------------------------------
 
-// Torque over time (measured and every prediction, with bands); then, when there is a
-// prediction, the residual of the first against qd and against q (where friction and cogging
-// show).
+// Torque over time (measured and every prediction, with bands); the signal plots over time;
+// then, when there is a prediction, the residual of the first against qd and against q (where
+// friction and cogging show).
 std::vector<Plot> JointPlots(const JointData& joint) {
   const std::size_t n = joint.measured.size();
   const std::string j = std::to_string(joint.joint);
@@ -298,6 +303,18 @@ std::vector<Plot> JointPlots(const JointData& joint) {
     time.series.push_back(std::move(s));
   }
   plots.push_back(std::move(time));
+  for (const SignalPlot& signal : joint.signal_plots) {
+    Plot plot;
+    plot.title = "Joint " + j + ": " + signal.title;
+    plot.x_label = joint.t.empty() ? "sample" : "t";
+    plot.y_label = signal.y_label;
+    plot.zero_line = true;
+    plot.wide = true;
+    for (const TimeSeries& series : signal.series) {
+      plot.series.push_back({series.label, "prediction", t, series.values, {}, {}});
+    }
+    plots.push_back(std::move(plot));
+  }
   if (joint.predictions.empty()) return plots;
 
   const PredictionSeries& first = joint.predictions.front();

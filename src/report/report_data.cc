@@ -1,6 +1,10 @@
 #include "structgp/report/report_data.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
 
 #include "structgp/fit/fit_model.h"
 
@@ -82,6 +86,56 @@ ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
   r.has_diagnosis = true;
   r.diagnosis = diagnosis;
   r.errors.push_back(ToModelErrors(p.label, ComputeErrors(p.mean, data.Y)));
+  return r;
+}
+
+ReportData ReplayReportData(const ReplaySummary& summary, const RobotData& data,
+                            const std::string& model_label) {
+  const int N = data.num_joints;
+  const Eigen::Index m = data.size();
+  if (summary.errors.rows() != m || summary.errors.cols() != N) {
+    throw std::invalid_argument(
+        "ReplayReportData: the replay's errors are " + std::to_string(summary.errors.rows()) +
+        " x " + std::to_string(summary.errors.cols()) + ", expected " + std::to_string(m) + " x " +
+        std::to_string(N) + " (the rows and joints of the data replayed)");
+  }
+  ModelPredictions p;
+  p.label = "one-step-ahead prediction";
+  p.mean = data.Y - summary.errors;  // NaN where the prediction failed
+  p.std = Matrix::Zero(m, N);
+  ReportData r;
+  r.title = "structgp replay: " + model_label;
+  r.data_source = data.source;
+  r.joints = JointSeries(data, {p});
+  for (int j = 0; j < N; ++j) {
+    r.joints[static_cast<size_t>(j)].predictions.front().std.clear();  // no band
+    TimeSeries e;
+    e.label = "measured - one-step-ahead prediction";
+    e.values.resize(static_cast<size_t>(m));
+    for (Eigen::Index i = 0; i < m; ++i) e.values[static_cast<size_t>(i)] = summary.errors(i, j);
+    r.joints[static_cast<size_t>(j)].signal_plots.push_back(
+        {"one-step-ahead error over time", "torque error", {std::move(e)}});
+  }
+  const Eigen::Index fifth = std::max<Eigen::Index>(1, m / 5);
+  const auto errors_of = [&](const std::string& label, Eigen::Index begin) {
+    const Matrix measured = data.Y.middleRows(begin, fifth);
+    const Matrix predicted = measured - summary.errors.middleRows(begin, fifth);
+    return ToModelErrors(label, ComputeErrors(predicted, measured));
+  };
+  r.errors.push_back(errors_of("first fifth of the steps", 0));
+  r.errors.push_back(errors_of("last fifth of the steps", m - fifth));
+  r.notes.push_back(std::to_string(summary.steps) + " samples replayed in time order (predict, "
+                    "then learn), " + std::to_string(summary.segment_starts.size()) +
+                    (summary.segment_starts.size() == 1 ? " trajectory" : " trajectories") +
+                    "; " + summary.form + " form, " + std::to_string(summary.num_features) +
+                    (summary.form == "regressor" ? " parameters" : " features") + "; " +
+                    std::to_string(summary.bad_samples) + " bad samples");
+  char latency[160];
+  std::snprintf(latency, sizeof(latency),
+                "update %.1f us p50, %.1f us p99; predict %.1f us p50, %.1f us p99",
+                summary.update_us_p50, summary.update_us_p99, summary.predict_us_p50,
+                summary.predict_us_p99);
+  r.notes.push_back(latency);
   return r;
 }
 

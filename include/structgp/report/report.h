@@ -5,7 +5,8 @@
 /// The diagnosis report: one self-contained HTML file (no network, no external scripts) with,
 /// per joint, measured vs predicted torque over time with a +-2 sigma band, the residual
 /// against qd and against q (where a friction step or a cogging ripple shows), the ranked
-/// suggestions with their evidence, and, for a comparison, the errors of each model per joint.
+/// suggestions with their evidence, for a comparison the errors of each model per joint, and
+/// signals over time such as a replay's one-step-ahead error (SignalPlot).
 /// Plots are interactive (zoom by dragging, double-click to reset, hover for values).
 
 #include <string>
@@ -23,12 +24,27 @@ struct PredictionSeries {
   std::vector<double> std;     ///< predictive standard deviation per sample (may be empty)
 };
 
+/// A signal of one joint over time that is not a torque prediction (e.g. a replay's
+/// one-step-ahead error).
+struct TimeSeries {
+  std::string label;
+  std::vector<double> values;  ///< one per measured sample; NaN: none (drawn as a gap)
+};
+
+/// A plot of signals over time, drawn after the joint's torque plot, with a zero line.
+struct SignalPlot {
+  std::string title;    ///< "one-step-ahead error" (shown as "Joint j: <title>")
+  std::string y_label;  ///< "torque error"
+  std::vector<TimeSeries> series;
+};
+
 struct JointData {
   int joint = 0;                    ///< 1-based
   std::vector<double> t;            ///< time (s) or sample index when the data have no time
   std::vector<double> q, qd;        ///< the joint's position and velocity
   std::vector<double> measured;     ///< measured torque
   std::vector<PredictionSeries> predictions;  ///< one per model (first = the model diagnosed)
+  std::vector<SignalPlot> signal_plots;       ///< more plots over time (may be empty)
 };
 
 /// Errors of one model, per joint.

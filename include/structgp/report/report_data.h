@@ -4,7 +4,8 @@
 /// @file
 /// What goes into a report, from a model and data: each model's predictions on the rows, their
 /// errors per joint, the per-joint series of the plots, and the whole ReportData of a
-/// diagnosis (what `structgp diagnose --report` writes).
+/// diagnosis (what `structgp diagnose --report` writes) and of a replay (`structgp replay
+/// --report`).
 
 #include <string>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "structgp/diagnose/diagnosis.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/model/robot_model.h"
+#include "structgp/online/replay.h"
 #include "structgp/report/report.h"
 
 namespace structgp {
@@ -51,6 +53,15 @@ std::vector<JointData> JointSeries(const RobotData& data,
 /// error bars, its errors and the findings. Throws as Predict.
 ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
                                const Diagnosis& diagnosis);
+
+/// The report of a replay of `data` (the log that was replayed, in the same row order):
+/// per joint the measured torque with the one-step-ahead prediction (measured - error), the
+/// one-step-ahead error over time (SignalPlot "one-step-ahead error"), and the residual plots;
+/// the RMS and nMSE of the error over the first and the last fifth of the steps; the replay's
+/// counters and latencies as notes. model_label names the model ("rbd+fri from zero").
+/// Throws std::invalid_argument when the summary's errors are not data.size() x N.
+ReportData ReplayReportData(const ReplaySummary& summary, const RobotData& data,
+                            const std::string& model_label);
 
 }  // namespace report
 }  // namespace structgp
