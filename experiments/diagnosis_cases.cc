@@ -35,7 +35,9 @@
 // | drift    | 0.1 (t / t_end) tanh(qd_j / 0.01), t_end the end of the diagnosed log | drift@j:t0=0;span=t_end |
 // | combined | 0.05 each of Coulomb, viscous, Stribeck on every joint | coulomb,viscous,stribeck@k:velocity=v_k |
 //
-// Per case and model (--models: pol, rbd with the simulated chain as its URDF): the model is
+// Per case and model (--models: pol, rbd with the simulated chain as its URDF; rbd shares its
+// inertial parameters across joints, so it is given the torques in N m, with the noise and
+// hidden torques scaled along, and its RMS is divided by the noise in N m): the model is
 // fitted on the training log with the CLI's defaults (FitModel, type-II maximum likelihood),
 // Diagnose runs on the diagnosed log with its defaults, the model is refitted on the training log
 // with every suggestion's `spec` text added to its effects (ParseEffectList: what a user would
@@ -473,16 +475,30 @@ std::string ExpectedText(const std::vector<Expected>& expected) {
 }
 
 SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
-                  const std::string& model_name, const SimLogs& logs, const Flags& f) {
+                  const std::string& model_name, const SimLogs& scaled, const Flags& f) {
   const auto start = std::chrono::steady_clock::now();
+  const ModelSpec spec = ParseModelSpec(model_name);
+  const bool rigid_body = spec.base == BaseModel::kRbd || spec.rigid_body_features;
+  // Models with rigid-body parameters share them across joints, so torques scaled per joint
+  // are not in their class: they get the torques in N m (noise and hidden effects scale along).
+  SimLogs logs = scaled;
+  const int N = static_cast<int>(scaled.train.Y.cols());
+  Vector noise = Vector::Constant(N, f.noise);
+  if (rigid_body) {
+    const Vector& scale = scaled.train.torque_scale;
+    for (sim::Dataset* d : {&logs.train, &logs.diag, &logs.eval}) {
+      d->Y = d->Y * scale.asDiagonal();
+      d->torque_scale.setOnes();
+    }
+    noise = f.noise * scale;
+  }
   SimRow row;
   row.robot = robot_name;
   row.kase = case_name;
   row.model = model_name;
   row.expected = ExpectedText(logs.expected);
-  const ModelSpec spec = ParseModelSpec(model_name);
   std::shared_ptr<const RigidBodyChain> chain;
-  if (spec.base == BaseModel::kRbd || spec.rigid_body_features) chain = logs.urdf;
+  if (rigid_body) chain = logs.urdf;
   const Fit base = FitSpec(spec, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows);
   if (!base.model) {
     row.note = base.error;
@@ -521,8 +537,8 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   } else {
     row.found = Format("%d/%d", found, static_cast<int>(logs.expected.size()));
   }
-  const double noise = f.noise;
-  row.before = ColumnRms(PredictOn(*base.model, logs.eval.X, logs.eval.t), logs.eval.Y) / noise;
+  row.before = ColumnRms(PredictOn(*base.model, logs.eval.X, logs.eval.t), logs.eval.Y)
+                   .cwiseQuotient(noise);
   // Refit with the suggestions (their spec text, as a user would add it) and with the truth;
   // a model with the same text as one already fitted (the suggestions are the true effects)
   // is not fitted again.
@@ -535,7 +551,8 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
     const Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows);
     std::pair<Vector, std::string> result{Vector(), fit.error};
     if (fit.model) {
-      result.first = ColumnRms(PredictOn(*fit.model, logs.eval.X, logs.eval.t), logs.eval.Y) / noise;
+      result.first = ColumnRms(PredictOn(*fit.model, logs.eval.X, logs.eval.t), logs.eval.Y)
+                         .cwiseQuotient(noise);
     }
     std::fprintf(stderr, "  %s %s: refit %s in %.0f s\n", robot_name.c_str(), case_name.c_str(),
                  label.c_str(), fit.seconds);
