@@ -774,15 +774,20 @@ RealResult RunReal(const Flags& f) {
     base.before = Pooled(ColumnRms(prediction, Y).cwiseQuotient(base.noise));
     if (!d0.suggestions.empty()) {
       ModelSpec with = spec;
-      for (const Suggestion& s : d0.suggestions) {
-        for (const EffectSpec& e : ParseEffectList(s.spec)) with.effects.push_back(e);
-      }
-      const Fit refit = FitSpec(with, log.train.X, log.train.Y, log.train.t, nullptr, f.real_ml_max_rows);
-      if (refit.model) {
-        base.after =
-            Pooled(ColumnRms(PredictOn(*refit.model, X, t), Y).cwiseQuotient(base.noise));
-      } else {
-        base.note += "refit with the suggestions: " + refit.error;
+      try {
+        for (const Suggestion& s : d0.suggestions) {
+          for (const EffectSpec& e : ParseEffectList(s.spec)) with.effects.push_back(e);
+        }
+        const Fit refit =
+            FitSpec(with, log.train.X, log.train.Y, log.train.t, nullptr, f.real_ml_max_rows);
+        if (refit.model) {
+          base.after =
+              Pooled(ColumnRms(PredictOn(*refit.model, X, t), Y).cwiseQuotient(base.noise));
+        } else {
+          base.note += "refit with the suggestions: " + refit.error;
+        }
+      } catch (const std::invalid_argument& e) {
+        base.note += std::string("a suggestion does not parse: ") + e.what();
       }
     } else {
       base.after = base.before;
