@@ -72,7 +72,8 @@
 // joint, params, spec) are read by name; any other top-level field of its JSON (ToJson) is
 // listed in the "other findings" column, so that fields added later are shown, not lost.
 // --findings-dir writes the JSON of every diagnosis. --quick: a CI-size run (PUMA 560, none and
-// coulomb, short logs; the UR10 log sliced, Coulomb at 10x the noise). --check: exit 3 unless
+// coulomb, short logs, rbd when --models is at its default; 300 rows of each UR10 part, one
+// cogging injection at 10x the noise). --check: exit 3 unless
 // every diagnosis ran (status ok) and every number is finite.
 
 #include <algorithm>
@@ -976,6 +977,7 @@ int Run(const Flags& flags, int argc, char** argv) {
   if (f.quick) {
     f.robots = {"puma560"};
     f.cases = {"none", "coulomb"};
+    if (f.models == std::vector<std::string>{"pol"}) f.models = {"rbd"};  // seconds, not minutes
     f.train_seconds = 6.0;
     f.test_seconds = 2.0;
     f.datasets = {"ur10"};
@@ -983,7 +985,7 @@ int Run(const Flags& flags, int argc, char** argv) {
     f.sizes = {10.0};
     f.periods = {0.4};
     f.joints = 1;
-    f.max_train = 400;
+    f.max_train = 300;
     f.heldout_rows = 300;
   }
   for (const std::string& p : f.parts) {
@@ -1075,8 +1077,8 @@ int main(int argc, char** argv) {
   AddFlag(&app, "--out", &f.out, "CSV file of every row");
   AddFlag(&app, "--findings-dir", &f.findings_dir, "write every diagnosis's JSON here");
   app.add_flag("--quick", f.quick,
-               "a CI-size run: PUMA 560 none/coulomb on short logs, a UR10 slice with one "
-               "cogging injection");
+               "a CI-size run: PUMA 560 none/coulomb on short logs (rbd when --models is "
+               "at its default), a UR10 slice with one cogging injection");
   app.add_flag("--check", f.check,
                "exit 3 unless every fit and diagnosis ran and every number is finite");
   return structgp::RunProgram(&app, argc, argv, [&] { return structgp::Run(f, argc, argv); });
