@@ -737,16 +737,6 @@ RealResult RunReal(const Flags& f) {
     return result;
   }
   const ModelSpec spec = ParseModelSpec(f.real_model);
-  if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
-    throw std::invalid_argument("--real-model: the real logs have no URDF here; expected a model "
-                                "without rbd, got '" + f.real_model + "'");
-  }
-  for (const std::string& e : f.injections) {
-    if (e != "cogging" && e != "coulomb" && e != "offset" && e != "drift") {
-      throw std::invalid_argument("--injections: unknown effect '" + e +
-                                  "' (expected cogging, coulomb, offset, drift)");
-    }
-  }
   for (const RealLog& log : logs) {
     const int N = log.train.num_joints;
     BaselineRow base;
@@ -991,6 +981,26 @@ int Run(const Flags& flags, int argc, char** argv) {
   for (const std::string& p : f.parts) {
     if (p != "sim" && p != "real") {
       throw std::invalid_argument("--parts: unknown part '" + p + "' (expected sim, real)");
+    }
+  }
+  // Names are checked before anything runs.
+  for (const std::string& c : f.cases) MakeSimCase(c, 7, 1);
+  for (const std::string& r : f.robots) MakeRobot(r);
+  for (const std::string& m : f.models) ParseModelSpec(m);
+  const ModelSpec real_spec = ParseModelSpec(f.real_model);
+  if (real_spec.base == BaseModel::kRbd || real_spec.rigid_body_features) {
+    throw std::invalid_argument("--real-model: the real logs have no URDF here; expected a model "
+                                "without rbd, got '" + f.real_model + "'");
+  }
+  for (const std::string& d : f.datasets) {
+    if (d != "ur10" && d != "sarcos") {
+      throw std::invalid_argument("--datasets: unknown data set '" + d + "' (ur10, sarcos)");
+    }
+  }
+  for (const std::string& e : f.injections) {
+    if (e != "cogging" && e != "coulomb" && e != "offset" && e != "drift") {
+      throw std::invalid_argument("--injections: unknown effect '" + e +
+                                  "' (expected cogging, coulomb, offset, drift)");
     }
   }
   const auto start = std::chrono::steady_clock::now();
