@@ -160,6 +160,7 @@ struct Flags {
   std::string out, findings_dir;
   bool quick = false;
   bool check = false;
+  bool with_training = true;
 };
 
 // ---- reading a diagnosis --------------------------------------------------------------------
@@ -280,12 +281,20 @@ Vector ColumnRms(const Matrix& A, const Matrix& B) {
 
 // The diagnosis of a fitted model on (X, Y, t), with its wall time; a thrown error becomes a
 // numerical-failure status with the message.
+// With train_X (and train_Y, train_t), the model's training data go to the diagnosis too.
 Diagnosis RunDiagnosis(const RobotModel& model, const Matrix& X, const Matrix& Y, const Vector& t,
-                       double* seconds) {
+                       double* seconds, const Matrix* train_X = nullptr,
+                       const Matrix* train_Y = nullptr, const Vector* train_t = nullptr) {
   const auto start = std::chrono::steady_clock::now();
   Diagnosis d;
   try {
-    d = Diagnose(model, ModelInputs(model, X, t), Y, t);
+    DiagnosisOptions options;
+    if (train_X != nullptr) {
+      options.training_inputs = ModelInputs(model, *train_X, *train_t);
+      options.training_targets = *train_Y;
+      options.training_times = *train_t;
+    }
+    d = Diagnose(model, ModelInputs(model, X, t), Y, t, options);
   } catch (const std::exception& e) {
     d.status = DiagnosisStatus::kNumericalFailure;
     d.message = std::string("threw: ") + e.what();
@@ -507,8 +516,10 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
     return row;
   }
   double diag_seconds = 0;
+  const bool with_training = f.with_training;
   const Diagnosis d = RunDiagnosis(*base.model, logs.diag.X, logs.diag.Y, logs.diag.t,
-                                   &diag_seconds);
+                                   &diag_seconds, with_training ? &logs.train.X : nullptr,
+                                   &logs.train.Y, &logs.train.t);
   std::fprintf(stderr, "%s %s %s: fit %.0f s, diagnosis %.0f s: %s\n", robot_name.c_str(),
                case_name.c_str(), model_name.c_str(), base.seconds, diag_seconds,
                SuggestionList(d).c_str());
@@ -753,7 +764,9 @@ RealResult RunReal(const Flags& f) {
     const Vector t = log.held.t;
     const Matrix prediction = PredictOn(*fit.model, X, t);
     base.noise = DifferenceNoise(Y - prediction);
-    const Diagnosis d0 = RunDiagnosis(*fit.model, X, Y, t, &base.seconds);
+    const Matrix* train_X = f.with_training ? &log.train.X : nullptr;
+    const Diagnosis d0 =
+        RunDiagnosis(*fit.model, X, Y, t, &base.seconds, train_X, &log.train.Y, &log.train.t);
     WriteFindings(f, "real_" + log.name + "_uninjected", d0);
     base.diagnosed = d0.status == DiagnosisStatus::kOk;
     if (!base.diagnosed) base.note = std::string(ToString(d0.status)) + ": " + d0.message;
@@ -831,7 +844,8 @@ RealResult RunReal(const Flags& f) {
               row.seed = seed;
               row.spanned = spanned;
               row.in_baseline = baseline_keys.count(effect + "@" + std::to_string(j + 1)) != 0;
-              const Diagnosis d = RunDiagnosis(*fit.model, X, Yi, t, &row.seconds);
+              const Diagnosis d = RunDiagnosis(*fit.model, X, Yi, t, &row.seconds, train_X,
+                                               &log.train.Y, &log.train.t);
               WriteFindings(f,
                             Format("real_%s_%s_j%d_x%g_p%g_s%d", log.name.c_str(), effect.c_str(),
                                    j + 1, size, period, seed),
@@ -1086,6 +1100,9 @@ int main(int argc, char** argv) {
       ->check(AtLeast(0));
   AddFlag(&app, "--out", &f.out, "CSV file of every row");
   AddFlag(&app, "--findings-dir", &f.findings_dir, "write every diagnosis's JSON here");
+  app.add_flag("--with-training,!--log-only", f.with_training,
+               "give the diagnosis the model's training data too (the default; --log-only: the "
+               "diagnosed log alone)");
   app.add_flag("--quick", f.quick,
                "a CI-size run: PUMA 560 none/coulomb on short logs (rbd when --models is "
                "at its default), a UR10 slice with one cogging injection");

@@ -285,13 +285,18 @@ class CoggingEffect : public Effect {
   /// The period whose sinusoid in q best explains the residual (searched in
   /// context.SearchRange("period")). The residual of a refit is distorted where the model
   /// absorbed part of the ripple, so the estimate comes with alternatives on a +-15% grid
-  /// around it, among which the diagnosis chooses by evidence.
+  /// around it (within the search range), among which the diagnosis chooses by evidence.
   std::vector<EffectParameters> ProposeParameters(const ResidualContext& c) const override {
     if (c.q.size() == 0 || c.residual.size() != c.q.size()) return {};
     const ParameterRange range = c.SearchRange("period");
     const double period = EstimateCoggingPeriod(c.q, c.residual, range.min, range.max);
     std::vector<EffectParameters> out;
-    for (int g = -6; g <= 6; ++g) out.push_back({{"period", period * (1.0 + 0.025 * g)}});
+    // The grid stays inside the search range (an estimate at its edge gets a one-sided grid).
+    for (int g = -6; g <= 6; ++g) {
+      const double p = period * (1.0 + 0.025 * g);
+      if (p >= range.min && p <= range.max) out.push_back({{"period", p}});
+    }
+    if (out.empty()) out.push_back({{"period", period}});
     return out;
   }
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<CoggingEffect>(*this); }
