@@ -189,6 +189,46 @@ TEST(FunctionSpacePol, EqualsTheExplicitMapUsedAsAKernel) {
   EXPECT_LT((std_a - std_b).cwiseAbs().maxCoeff(), 1e-6 * std_b.cwiseAbs().maxCoeff());
 }
 
+// A time-dependent effect in function space (pol on k_pol's formula for 2 joints, forced):
+// the base kernel sees the state alone (LeadingInputsKernel), the drift its features with t;
+// predictions equal those of the explicit map (with the drift.s features) used as a kernel.
+TEST(FunctionSpacePol, DriftInFunctionSpaceEqualsTheExplicitMapWithDrift) {
+  sim::HiddenEffectOptions o;
+  o.effect = HiddenEffect::kDrift;
+  o.joint = 2;
+  o.train_duration = 6.0;
+  o.test_duration = 2.0;
+  const auto scenario = sim::MakeHiddenEffectScenario(sim::TwoLinkArm(), o);
+  const ModelSpec spec = ParseModelLabel("pol + drift@2:t0=0;span=8");
+  RobotModelOptions by_formula;
+  by_formula.max_explicit_features = 10;
+  by_formula.form = Form::kFunctionSpace;
+  RobotModel formula(spec, 2, by_formula);
+  ASSERT_NE(formula.kernel(), nullptr);
+  ASSERT_EQ(formula.feature_map(), nullptr);
+  EXPECT_EQ(formula.input_dim(), 7);
+  RobotModelOptions by_map;  // the explicit map as a kernel, with the drift's features
+  by_map.form = Form::kFunctionSpace;
+  RobotModel explicit_map(spec, 2, by_map);
+  ASSERT_NE(explicit_map.feature_map(), nullptr);
+
+  const Matrix X = WithTime(scenario.train, true), Xs = WithTime(scenario.test, true);
+  const Matrix& Y = scenario.train.Y;
+  ASSERT_EQ(explicit_map.Fit(X, Y), Status::kOk);
+  ASSERT_EQ(formula.Fit(X, Y), Status::kOk);
+  Matrix mean_a, mean_b;
+  formula.PredictRows(Xs, &mean_a);
+  explicit_map.PredictRows(Xs, &mean_b);
+  const double scale = mean_b.cwiseAbs().maxCoeff();
+  EXPECT_LT((mean_a - mean_b).cwiseAbs().maxCoeff(), 1e-6 * scale);
+  // The drift matters: the same model without it predicts the later log differently.
+  RobotModel no_drift(ParseModelSpec("pol"), 2, by_map);
+  ASSERT_EQ(no_drift.Fit(scenario.train.X, Y), Status::kOk);
+  Matrix mean_c;
+  no_drift.PredictRows(scenario.test.X, &mean_c);
+  EXPECT_GT((mean_c - mean_b).cwiseAbs().maxCoeff(), 100 * 1e-6 * scale);
+}
+
 // A 4-joint robot with a hidden Coulomb friction on joint 3, modelled by pol in function space:
 // the diagnosis scores the candidates against Nystrom features of the model's kernel, names the
 // effect on the right joint, and adding it (still in function space) cuts the test error.

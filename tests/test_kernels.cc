@@ -28,6 +28,7 @@
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
+#include "structgp/kernel/leading_inputs_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 
@@ -89,6 +90,13 @@ std::vector<KernelCase> AllKernels() {
                      h.shape << 0.3;
                      h.log_block_scale << 0.2, -0.5, 0.4;
                      return std::unique_ptr<Kernel>(std::make_unique<FeatureKernel>(map, h));
+                   }});
+  cases.push_back({"leading_inputs_rbf", [] {
+                     RbfKernel inner(3, true);
+                     Vector theta(4);
+                     theta << 0.2, -0.3, 0.1, 0.4;
+                     return std::unique_ptr<Kernel>(
+                         std::make_unique<LeadingInputsKernel>(*inner.WithParameters(theta), 5));
                    }});
   cases.push_back({"pol_formula_2", [] {
                      auto k = std::make_unique<PolFormulaKernel>(2);

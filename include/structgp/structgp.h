@@ -41,6 +41,7 @@
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/leading_inputs_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 #include "structgp/kernel/nystrom_feature_map.h"
 

@@ -12,6 +12,7 @@
 #include "structgp/feature/rigid_body_torque_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/leading_inputs_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
@@ -55,12 +56,6 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
   if (spec_.base == BaseModel::kMotor || (spec_.base == BaseModel::kPol && !pol_by_formula)) {
     BuildFeatureMap();
   } else {
-    if (uses_time_) {
-      throw std::invalid_argument(
-          "model '" + ToString(spec_) + "' for " + std::to_string(num_joints_) +
-          " joints runs in function space, and time-dependent effects (drift) need an "
-          "explicit feature map (motor, or pol up to max_explicit_features)");
-    }
     BuildKernel();
   }
 }
@@ -188,8 +183,10 @@ void RobotModel::BuildKernel() {
   } else {
     base = std::make_unique<RbfsKernel>(N, /*ard=*/true);
   }
+  // With a time-dependent effect the inputs end with t, which the base kernel does not see.
+  if (uses_time_) base = std::make_unique<LeadingInputsKernel>(*base, 3 * N + 1);
   std::vector<std::string> extra_names;
-  auto extras = ExtrasMap(spec_, N, options_.friction_width, false, &extra_names);
+  auto extras = ExtrasMap(spec_, N, options_.friction_width, uses_time_, &extra_names);
   if (!extras) {
     kernel_ = std::move(base);
   } else {
