@@ -16,8 +16,9 @@
 //    as gaps / skipped); levels are dashed horizontal reference lines, always in the automatic
 //    y range.
 //  * <div class="plot" data-plot="k"> is where plot k is drawn. After drawing, the element gets
-//    data-marks (points drawn inside the view) and the status data-plots-rendered (plots with at
-//    least one mark) and data-state="done".
+//    data-marks (points drawn inside the view), data-levels (reference lines drawn, on plots that
+//    have levels) and the status data-plots-rendered (plots with at least one mark) and
+//    data-state="done".
 //  * With "#selftest" in the address, every plot is zoomed, hovered and reset by synthetic
 //    pointer events and the outcome written to the status's data-selftest.
 
@@ -429,9 +430,10 @@ inline constexpr char kReportScript[] = R"js(
 
   // Dashed horizontal reference lines with their labels (spec.levels), where in view.
   Plot.prototype.drawLevels = function (ctx) {
-    var a = this.area, self = this;
+    var a = this.area, self = this, drawn = 0;
     (this.spec.levels || []).forEach(function (level) {
       if (!isNum(level.y) || level.y < self.current.y[0] || level.y > self.current.y[1]) return;
+      ++drawn;
       var py = Math.round(self.sy(level.y)) + 0.5;
       ctx.strokeStyle = LEVEL_COLOR;
       ctx.lineWidth = 1.5;
@@ -447,6 +449,7 @@ inline constexpr char kReportScript[] = R"js(
       ctx.textBaseline = 'bottom';
       ctx.fillText(level.label, a.left + a.width - 4, py - 2);
     });
+    if (this.spec.levels) this.container.setAttribute('data-levels', String(drawn));
   };
 
   // Draws series i as a line broken at missing values; returns the points inside the view.
