@@ -580,6 +580,30 @@ TEST(Report, PlotsEachSuggestionsResidualBeforeAndAfterAgainstQdAndQ) {
               std::string::npos)
         << e.what();
   }
+
+  // A report whose joints show other data than the diagnosed log (the demo: diagnosis on the
+  // training log, plots of the test log): the suggestions' residuals are plotted against the
+  // diagnosed log's states.
+  ReportData other = MakeReport(2, 250, true);
+  std::vector<JointStates> states(2);
+  for (int j = 0; j < 2; ++j) {
+    states[j].joint = j + 1;
+    states[j].q = data.joints[j].q;
+    states[j].qd = data.joints[j].qd;
+  }
+  other.diagnosis = data.diagnosis;
+  EXPECT_THROW(RenderHtml(other), std::invalid_argument);  // 600 rows, 250 samples
+  other.diagnosed_states = states;
+  const json other_plots = PlotData(RenderHtml(other))["plots"];
+  ASSERT_EQ(other_plots.size(), 10u);
+  const json* shown = PlotTitled(other_plots, expected[0].title);
+  ASSERT_NE(shown, nullptr);
+  ASSERT_EQ((*shown)["series"][0]["x"].size(), static_cast<std::size_t>(n));
+  EXPECT_NEAR((*shown)["series"][0]["x"][17].get<double>(), data.joints[0].qd[17],
+              1e-7 * std::abs(data.joints[0].qd[17]));
+  EXPECT_EQ(other_plots[0]["series"][0]["y"].size(), 250u);  // the joints' own plots
+  other.diagnosed_states[1].q.pop_back();
+  EXPECT_THROW(RenderHtml(other), std::invalid_argument);  // q and qd of different lengths
 }
 
 // The row of suggestion `number` in the suggestions table.

@@ -245,12 +245,26 @@ void AppendPlotJson(const Plot& plot, int max_points, std::string* out) {
 
 // ---- input checks ---------------------------------------------------------------------------
 
-// The series of joint `joint` (1-based), or null when the report has none.
-const JointData* FindJoint(const ReportData& data, int joint) {
-  for (const JointData& j : data.joints) {
-    if (j.joint == joint) return &j;
+// The states of joint `joint` (1-based) on the diagnosed log: ReportData::diagnosed_states when
+// given, else the joint's series; false when the report has none.
+bool DiagnosedStates(const ReportData& data, int joint, const std::vector<double>** q,
+                     const std::vector<double>** qd) {
+  if (!data.diagnosed_states.empty()) {
+    for (const JointStates& s : data.diagnosed_states) {
+      if (s.joint != joint) continue;
+      *q = &s.q;
+      *qd = &s.qd;
+      return true;
+    }
+    return false;
   }
-  return nullptr;
+  for (const JointData& j : data.joints) {
+    if (j.joint != joint) continue;
+    *q = &j.q;
+    *qd = &j.qd;
+    return true;
+  }
+  return false;
 }
 
 void CheckLength(const JointData& joint, const std::string& what, std::size_t got,
@@ -278,6 +292,14 @@ void CheckInput(const ReportData& data, int max_points_per_plot) {
       CheckLength(joint, "the std of '" + p.label + "'", p.std.size(), true);
     }
   }
+  for (const JointStates& s : data.diagnosed_states) {
+    if (!s.q.empty() && !s.qd.empty() && s.q.size() != s.qd.size()) {
+      throw std::invalid_argument("RenderHtml: diagnosed_states of joint " +
+                                  std::to_string(s.joint) + ": q has " +
+                                  std::to_string(s.q.size()) + " values, qd " +
+                                  std::to_string(s.qd.size()) + " (expected the same)");
+    }
+  }
   if (data.has_diagnosis) {
     const Diagnosis& d = data.diagnosis;
     for (const Suggestion& s : d.suggestions) {
@@ -289,14 +311,17 @@ void CheckInput(const ReportData& data, int max_points_per_plot) {
                                     " values, residual_after_rows " + std::to_string(after) +
                                     " (expected the same)");
       }
-      const JointData* joint = FindJoint(data, s.joint);
-      if (before == 0 || joint == nullptr) continue;
-      if (static_cast<std::size_t>(before) != joint->measured.size()) {
-        throw std::invalid_argument(what + "residual_before_rows has " + std::to_string(before) +
-                                    " values, expected " +
-                                    std::to_string(joint->measured.size()) +
-                                    " (one per measured sample of joint " +
-                                    std::to_string(s.joint) + ") or none");
+      const std::vector<double>*q = nullptr, *qd = nullptr;
+      if (before == 0 || !DiagnosedStates(data, s.joint, &q, &qd)) continue;
+      const std::size_t states = std::max(q->size(), qd->size());
+      if (static_cast<std::size_t>(before) != states) {
+        throw std::invalid_argument(
+            what + "residual_before_rows has " + std::to_string(before) + " values, expected " +
+            std::to_string(states) + " (one per row of the diagnosed log: the " +
+            (data.diagnosed_states.empty() ? "samples of joint " + std::to_string(s.joint)
+                                           : "diagnosed_states of joint " +
+                                                 std::to_string(s.joint)) +
+            ") or none");
       }
     }
     const CoverageFinding& c = d.coverage;
@@ -374,14 +399,17 @@ std::vector<Plot> JointPlots(const JointData& joint) {
 
 std::vector<double> ToStd(const Vector& v) { return std::vector<double>(v.data(), v.data() + v.size()); }
 
-// Suggestion `number` (1-based) of the diagnosis, on its joint: the joint's residual on the log
-// against qd and against q, the model refitted there without and with the effect, on one plot
+// Suggestion `number` (1-based) of the diagnosis, on its joint: the joint's residual on the
+// diagnosed log against the joint's qd and q there (DiagnosedStates), the model refitted there without and with the effect, on one plot
 // (the same axes: a Coulomb step or a cogging ripple in the first series, gone in the second).
 // None when the suggestion has no residual rows.
-std::vector<Plot> SuggestionPlots(const JointData& joint, const Suggestion& s, int number) {
+std::vector<Plot> SuggestionPlots(const ReportData& data, const Suggestion& s, int number) {
   std::vector<Plot> plots;
-  if (s.residual_before_rows.size() == 0) return plots;
-  const std::string j = std::to_string(joint.joint);
+  const std::vector<double>*q = nullptr, *qd = nullptr;
+  if (s.residual_before_rows.size() == 0 || !DiagnosedStates(data, s.joint, &q, &qd)) {
+    return plots;
+  }
+  const std::string j = std::to_string(s.joint);
   const std::vector<double> before = ToStd(s.residual_before_rows);
   const std::vector<double> after = ToStd(s.residual_after_rows);
   const auto plot = [&](const std::vector<double>& x, const std::string& variable) {
@@ -396,12 +424,12 @@ std::vector<Plot> SuggestionPlots(const JointData& joint, const Suggestion& s, i
     p.series.push_back({"after: refitted with " + s.spec, "residual", x, after, {}, {}});
     return p;
   };
-  if (!joint.qd.empty()) plots.push_back(plot(joint.qd, "qd" + j));
-  if (!joint.q.empty()) plots.push_back(plot(joint.q, "q" + j));
+  if (!qd->empty()) plots.push_back(plot(*qd, "qd" + j));
+  if (!q->empty()) plots.push_back(plot(*q, "q" + j));
   if (!plots.empty()) {
     plots.front().heading = "Suggestion " + std::to_string(number) + ": <code>" +
                             Escape(s.spec) + "</code> &mdash; residual of joint " + j +
-                            " on the log, the model refitted there without and with the effect "
+                            " on the diagnosed log, the model refitted there without and with the effect "
                             "(RMS " + FormatNumber(s.residual_rms_before, kTableDigits) +
                             " &rarr; " + FormatNumber(s.residual_rms_after, kTableDigits) + ")";
   }
@@ -819,7 +847,7 @@ std::string RenderHtml(const ReportData& data, int max_points_per_plot) {
     for (std::size_t k = 0; k < data.diagnosis.suggestions.size(); ++k) {
       const Suggestion& s = data.diagnosis.suggestions[k];
       if (s.joint != joint.joint) continue;
-      for (const Plot& plot : SuggestionPlots(joint, s, static_cast<int>(k) + 1)) {
+      for (const Plot& plot : SuggestionPlots(data, s, static_cast<int>(k) + 1)) {
         add(plot, &layout.back());
       }
     }
