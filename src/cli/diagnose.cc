@@ -41,8 +41,7 @@ class DiagnoseCommand : public Command {
         ->check(CLI::Range(0.0, 1e9))
         ->capture_default_str();
     cmd->add_option("--significance", options_.significance,
-                    "Family-wise error rate (Holm) over every candidate on every joint, in "
-                    "(0, 0.5]")
+                    "Family-wise error rate (Holm) over every candidate on every joint")
         ->check(CLI::Validator(
             [](std::string& text) -> std::string {
               double value = 0;
