@@ -321,6 +321,27 @@ TEST(Report, EscapesEveryStringFromTheData) {
   const json plots = PlotData(html);
   EXPECT_EQ(plots["plots"][0]["series"][1]["label"], kHostileLabel);
   EXPECT_EQ(plots["plots"][1]["series"][0]["label"], std::string("measured - ") + kHostileLabel);
+
+  // The suggestion plots' heading and the verdict's message are escaped too.
+  ReportData two = MakeReport(2, 100, true);
+  AddSuggestionRows(&two);
+  two.diagnosis.suggestions[0].spec = kHostileLabel;
+  two.diagnosis.suggestions[0].confirmation = kHostileFile;
+  two.diagnosis.suggestions[0].selection = kHostileFile;
+  two.diagnosis.coverage.message = kHostileLabel;
+  const std::string page = RenderHtml(two);
+  EXPECT_EQ(page.find("pwned=1</script>"), std::string::npos);
+  EXPECT_EQ(page.find("<b>x</b>"), std::string::npos);
+  EXPECT_EQ(page.find(kHostileFile), std::string::npos);
+  EXPECT_EQ(CountOf(page, "<script"), 3);
+  EXPECT_NE(page.find("Suggestion 1: <code>&lt;/script&gt;&lt;script&gt;window.pwned=1"),
+            std::string::npos);
+  const json page_plots = PlotData(page)["plots"];
+  const json* plot = PlotTitled(page_plots,
+                                std::string("Suggestion 1 (") + kHostileLabel +
+                                    "): residual vs qd1, before and after");
+  ASSERT_NE(plot, nullptr);
+  EXPECT_EQ((*plot)["series"][1]["label"], std::string("after: refitted with ") + kHostileLabel);
 }
 
 TEST(Report, ThinsEachSeriesToTheLimitKeepingExtremes) {
