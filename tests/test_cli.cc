@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -366,6 +367,210 @@ TEST(Cli, BadInputGivesExitCode2AClearMessageAndNoOutput) {
     for (const auto& path : c.outputs) {
       EXPECT_EQ(ReadFile(path), "precious contents of " + path + "\n") << path;
     }
+  }
+}
+
+// ---- diagnose --train and --significance ---------------------------------------------------
+
+// The columns of a CSV file with a header, by name.
+std::map<std::string, std::vector<double>> ReadColumns(const std::string& path) {
+  std::istringstream in(ReadFile(path));
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> names;
+  std::istringstream header(line);
+  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
+  std::map<std::string, std::vector<double>> columns;
+  while (std::getline(in, line)) {
+    std::istringstream cells(line);
+    std::string cell;
+    for (size_t k = 0; k < names.size() && std::getline(cells, cell, ','); ++k) {
+      columns[names[k]].push_back(std::stod(cell));
+    }
+  }
+  return columns;
+}
+
+// Distance of each row of the log to the nearest of the training rows `every`-th row apart,
+// in joint j's (q, qd, qdd) standardised by the mean and standard deviation of all the
+// training rows (docs/diagnosis.md).
+std::vector<double> DistanceToTraining(const std::map<std::string, std::vector<double>>& train,
+                                       const std::map<std::string, std::vector<double>>& log,
+                                       int j, size_t every) {
+  const std::string J = std::to_string(j);
+  const std::vector<std::string> vars = {"q" + J, "qd" + J, "qdd" + J};
+  double mean[3], scale[3];
+  for (int v = 0; v < 3; ++v) {
+    const std::vector<double>& c = train.at(vars[v]);
+    double sum = 0, sq = 0;
+    for (const double x : c) sum += x;
+    mean[v] = sum / c.size();
+    for (const double x : c) sq += (x - mean[v]) * (x - mean[v]);
+    const double sd = std::sqrt(sq / c.size());
+    scale[v] = sd > 0 ? 1.0 / sd : 1.0;
+  }
+  const size_t n_train = train.at(vars[0]).size(), n_log = log.at(vars[0]).size();
+  std::vector<double> distance(n_log);
+  for (size_t r = 0; r < n_log; ++r) {
+    double best = INFINITY;
+    for (size_t i = 0; i < n_train; i += every) {
+      double d2 = 0;
+      for (int v = 0; v < 3; ++v) {
+        const double d = scale[v] * (log.at(vars[v])[r] - train.at(vars[v])[i]);
+        d2 += d * d;
+      }
+      best = std::min(best, d2);
+    }
+    distance[r] = std::sqrt(best);
+  }
+  return distance;
+}
+
+TEST(CliDiagnose, TrainWritesTheCoverageVerdictAndTheDistancesPerJoint) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);
+  const std::string train = demo + "/train.csv", log = demo + "/test.csv";
+  const std::string findings = dir.File("f.json"), report = dir.File("r.html");
+  const Result r = RunCli(dir, {"diagnose", "--model", demo + "/model_before.json", "--data", log,
+                                "--train", train, "--json", findings, "--report", report});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "outside training")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "verdict: ")) << r.out;
+  const Json f = Json::parse(ReadFile(findings));
+  const Json& coverage = f["coverage"];
+  const std::vector<std::string> verdicts = {"explained", "coverage", "missing_effect",
+                                             "unexplained"};
+  ASSERT_TRUE(coverage["verdict"].is_string()) << coverage.dump(2);
+  EXPECT_NE(std::find(verdicts.begin(), verdicts.end(), coverage["verdict"].get<std::string>()),
+            verdicts.end())
+      << coverage["verdict"];
+  EXPECT_FALSE(coverage["message"].get<std::string>().empty());
+  EXPECT_EQ(coverage["verdict"] == "missing_effect", !f["suggestions"].empty());
+
+  // The distances, against a reference computed here from the two files: the training states
+  // the diagnosis searches (at most 2,000 of the 4,000, evenly spaced: every second) give the
+  // exact values; all 4,000 give a lower bound.
+  const auto train_columns = ReadColumns(train), log_columns = ReadColumns(log);
+  const size_t rows = log_columns.at("t").size();
+  ASSERT_EQ(train_columns.at("t").size(), 4000u);
+  const Json& time = coverage["distance_time"];
+  const Json& distance = coverage["distance"];
+  ASSERT_TRUE(time.is_array() && distance.is_array()) << coverage.dump(2);
+  ASSERT_EQ(time.size(), distance.size());
+  EXPECT_EQ(time.size(), std::min<size_t>(rows, 400));
+  EXPECT_TRUE(std::is_sorted(time.begin(), time.end()));
+  EXPECT_GE(time.front().get<double>(), log_columns.at("t").front());
+  EXPECT_LE(time.back().get<double>(), log_columns.at("t").back());
+  bool any_outside = false;
+  for (int j = 1; j <= 2; ++j) {
+    SCOPED_TRACE("joint " + std::to_string(j));
+    const std::vector<double> exact = DistanceToTraining(train_columns, log_columns, j, 2);
+    const std::vector<double> bound = DistanceToTraining(train_columns, log_columns, j, 1);
+    const double max_exact = *std::max_element(exact.begin(), exact.end());
+    const double outside =
+        static_cast<double>(std::count_if(exact.begin(), exact.end(),
+                                          [](double d) { return d > 1.0; })) / rows;
+    const Json& finding = f["joints"][j - 1];
+    ASSERT_TRUE(finding.contains("max_distance")) << finding.dump(2);
+    EXPECT_NEAR(finding["max_distance"].get<double>(), max_exact, 1e-6 * max_exact);
+    EXPECT_GE(finding["max_distance"].get<double>(),
+              *std::max_element(bound.begin(), bound.end()) - 1e-9);
+    EXPECT_NEAR(finding["outside_fraction"].get<double>(), outside, 1.5 / rows);
+    any_outside = any_outside || outside > 0.1;
+    // Each point is the largest distance of its stretch of rows: in range, and the largest
+    // of them is the largest of all.
+    double max_plotted = 0;
+    for (const Json& row : distance) {
+      ASSERT_EQ(row.size(), 2u);
+      const double d = row[j - 1].get<double>();
+      EXPECT_GE(d, 0.0);
+      EXPECT_LE(d, max_exact * (1 + 1e-6));
+      max_plotted = std::max(max_plotted, d);
+    }
+    EXPECT_NEAR(max_plotted, max_exact, 1e-6 * max_exact);
+  }
+  // The demo's test log is another motion than its training log.
+  EXPECT_TRUE(any_outside);
+  // A joint whose error is called coverage is one where the log leaves the training states.
+  for (const Json& j : coverage["coverage_joints"]) {
+    const int joint = j.get<int>();
+    ASSERT_TRUE(joint == 1 || joint == 2) << joint;
+    EXPECT_GT(f["joints"][joint - 1]["max_distance"].get<double>(), 1.0);
+  }
+  // The report has the verdict and the coverage plot with its level-1 line.
+  const std::string html = ReadFile(report);
+  EXPECT_TRUE(Contains(html, "data-verdict=\"" + coverage["verdict"].get<std::string>() + "\""));
+  EXPECT_TRUE(Contains(html, "<section id=\"coverage\">"));
+  EXPECT_TRUE(Contains(html, "\"levels\":[{\"y\":1,"));
+
+  // Without --train: the verdict, no distances.
+  const Result plain = RunCli(dir, {"diagnose", "--model", demo + "/model_before.json", "--data",
+                                    log, "--json", findings});
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  const Json g = Json::parse(ReadFile(findings));
+  EXPECT_TRUE(g["coverage"]["verdict"].is_string());
+  EXPECT_FALSE(g["coverage"].contains("distance"));
+  EXPECT_FALSE(g["joints"][0].contains("max_distance"));
+}
+
+// A --train file that does not fit is refused naming that file (not --data) and the flag; a
+// --significance outside (0, 0.5] is refused; exit code 2 and nothing written either way.
+TEST(CliDiagnose, BadTrainOrSignificanceIsRefusedNamingTheFileOrFlag) {
+  TempDir dir;
+  const std::string d = dir.File("");
+  const std::string good = dir.File("good.csv"), model = dir.File("model.json");
+  WriteFile(good, GoodCsv(300));
+  WriteFile(dir.File("three.csv"), GoodCsv(50, 3));
+  WriteFile(dir.File("notime.csv"), GoodCsv(300, 2, false));
+  WriteFile(dir.File("nocol.csv"), "t,q1,q2,qd1,qd2,qdd1,qdd2,tau1\n0,0,0,0,0,0,0,0\n");
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", good, "--model", "pol", "--hyper", "fixed", "--out",
+                         model, "-q"})
+                .code,
+            0);
+  const std::string out = dir.File("findings.json"), out2 = dir.File("report.html");
+  const auto diagnose = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"diagnose", "--model", model,  "--data", good,
+                                     "--json",   out,       "--report", out2};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  };
+  struct Case {
+    std::string name;
+    std::vector<std::string> extra;
+    std::vector<std::string> expected;
+  };
+  const std::vector<Case> cases = {
+      {"train with three joints",
+       {"--train", d + "three.csv"},
+       {d + "three.csv:1:", "--train", "expected 2 joints (model), file has 3"}},
+      {"train without a column", {"--train", d + "nocol.csv"}, {d + "nocol.csv:1:", "--train", "missing column tau2"}},
+      {"train without times", {"--train", d + "notime.csv"}, {d + "notime.csv:1:", "--train", "no 't' column", "--data " + good}},
+      {"train missing", {"--train", d + "none.csv"}, {d + "none.csv", "cannot open"}},
+      {"significance 0", {"--significance", "0"}, {"--significance", "(0, 0.5]", "got 0"}},
+      {"significance 2", {"--significance", "2"}, {"--significance", "(0, 0.5]", "got 2"}},
+      {"significance negative", {"--significance", "-0.01"}, {"--significance", "got -0.01"}},
+      {"significance not a number", {"--significance", "abc"}, {"--significance", "'abc'"}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    for (const auto& path : {out, out2}) WriteFile(path, "precious\n");
+    const Result r = RunCli(dir, diagnose(c.extra));
+    EXPECT_EQ(r.code, 2) << r.err;
+    for (const auto& part : c.expected) {
+      EXPECT_TRUE(Contains(r.err, part)) << "stderr: " << r.err << "\nexpected: " << part;
+    }
+    // The --data file is fine: the message must not blame it.
+    EXPECT_FALSE(Contains(r.err, good + ":")) << r.err;
+    EXPECT_FALSE(Contains(r.out, "wrote")) << r.out;
+    for (const auto& path : {out, out2}) EXPECT_EQ(ReadFile(path), "precious\n") << path;
+  }
+  // The limits themselves are accepted, and a --train file that fits.
+  for (const std::vector<std::string>& extra :
+       {std::vector<std::string>{"--significance", "0.5"},
+        std::vector<std::string>{"--significance", "1e-6", "--train", good}}) {
+    const Result r = RunCli(dir, diagnose(extra));
+    EXPECT_EQ(r.code, 0) << extra[1] << ": " << r.err;
   }
 }
 

@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <zlib.h>
 
+#include "structgp/core/types.h"
 #include "structgp/report/report.h"
 
 namespace structgp {
@@ -150,6 +151,132 @@ std::string PlotDataText(const std::string& html) {
 
 json PlotData(const std::string& html) { return json::parse(PlotDataText(html)); }
 
+constexpr double kRipplePeriod = 0.3;     // rad, the cogging of suggestion 2
+constexpr double kRippleAmplitude = 0.3;  // N m
+constexpr double kCoulomb = 0.4;          // N m, the step MakeJoint puts into every joint
+
+double Ripple(double q) { return std::sin(2.0 * M_PI * q / kRipplePeriod); }
+
+Vector ToVector(const std::vector<double>& v) {
+  return Eigen::Map<const Vector>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// The residual rows of the two suggestions of MakeDiagnosis, from the joints' data: coulomb@1
+// before = measured - the model without the step (the step shows), after = measured - the
+// model with it; cogging@2 before = after + a ripple in q2, after = measured - the model with
+// the step. Calibration and confirmation numbers too.
+void AddSuggestionRows(ReportData* data) {
+  ASSERT_GE(data->joints.size(), 2u);
+  ASSERT_EQ(data->diagnosis.suggestions.size(), 2u);
+  const JointData& j1 = data->joints[0];
+  const JointData& j2 = data->joints[1];
+  const std::size_t n = j1.measured.size();
+  std::vector<double> before1(n), after1(n), before2(n), after2(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    before1[i] = j1.measured[i] - j1.predictions[0].mean[i];
+    after1[i] = j1.measured[i] - j1.predictions[1].mean[i];
+    after2[i] = j2.measured[i] - j2.predictions[1].mean[i];
+    before2[i] = after2[i] + kRippleAmplitude * Ripple(j2.q[i]);
+  }
+  Suggestion& s = data->diagnosis.suggestions[0];
+  s.residual_before_rows = ToVector(before1);
+  s.residual_after_rows = ToVector(after1);
+  s.residual_rms_before = 0.41;
+  s.residual_rms_after = 0.05;
+  s.score_uncorrected = 5012.66;
+  s.inflation = 6.17;
+  s.effective_samples = 162.1;
+  s.p_value = 1.2e-14;
+  s.adjusted_p_value = 2.4e-13;
+  s.effect_rms = 0.375;
+  s.effect_to_noise = 7.5;
+  s.z = 28.5;
+  s.confirmation = "blocks";
+  s.confirmation_folds = 5;
+  s.confirmation_gap = 20;
+  s.folds_improved = 4;
+  s.selection = "joint";
+  Suggestion& c = data->diagnosis.suggestions[1];
+  c.residual_before_rows = ToVector(before2);
+  c.residual_after_rows = ToVector(after2);
+  c.confirmation = "trajectories";
+  c.confirmation_folds = 3;
+  c.confirmation_gap = 0;
+  c.folds_improved = 3;
+}
+
+// A coverage finding with distances of `points` points for `joints` joints: joint k's
+// distance is (k + 1) * 0.5 * (1 + sin(t)), so joint 1 stays at or under 1 and joint 2 goes over.
+void AddCoverage(ReportData* data, int joints, int points) {
+  CoverageFinding& c = data->diagnosis.coverage;
+  c.verdict = Verdict::kCoverage;
+  c.message = "the model does not extrapolate to these motions on joint 2";
+  c.coverage_joints = {2};
+  c.distance_time.resize(points);
+  c.distance.resize(points, joints);
+  for (int p = 0; p < points; ++p) {
+    c.distance_time[p] = 0.01 * p;
+    for (int k = 0; k < joints; ++k) c.distance(p, k) = (k + 1) * 0.5 * (1.0 + std::sin(0.01 * p));
+  }
+  for (JointFinding& f : data->diagnosis.joints) {
+    f.refit_rms = 0.051;
+    f.outside_fraction = f.joint == 2 ? 0.31 : 0.0;
+    f.max_distance = f.joint == 2 ? 4.2 : 0.93;
+  }
+}
+
+// The plot whose title is `title`, or null.
+const json* PlotTitled(const json& plots, const std::string& title) {
+  for (const json& p : plots) {
+    if (p["title"] == title) return &p;
+  }
+  return nullptr;
+}
+
+// The part of the page from the element with id `id` to the end of its section.
+std::string Section(const std::string& html, const std::string& id) {
+  const std::size_t begin = html.find("id=\"" + id + "\"");
+  if (begin == std::string::npos) return "";
+  return html.substr(begin, html.find("</section>", begin) - begin);
+}
+
+// The data-plot indices in `text`, in order.
+std::vector<int> PlotIndices(const std::string& text) {
+  std::vector<int> indices;
+  const std::regex pattern("data-plot=\"([0-9]+)\"");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), pattern);
+       it != std::sregex_iterator(); ++it) {
+    indices.push_back(std::stoi((*it)[1].str()));
+  }
+  return indices;
+}
+
+// Least-squares coefficient of `basis` in y (the size of that component of y).
+double Coefficient(const std::vector<double>& y, const std::vector<double>& basis) {
+  double yb = 0, bb = 0;
+  for (std::size_t i = 0; i < y.size(); ++i) {
+    yb += y[i] * basis[i];
+    bb += basis[i] * basis[i];
+  }
+  return yb / bb;
+}
+
+// Mean of y where x > 0 minus where x < 0: the height of a step at x = 0.
+double StepAtZero(const std::vector<double>& x, const std::vector<double>& y) {
+  double up = 0, down = 0;
+  int n_up = 0, n_down = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (x[i] > 0) {
+      up += y[i];
+      ++n_up;
+    } else if (x[i] < 0) {
+      down += y[i];
+      ++n_down;
+    }
+  }
+  return up / n_up - down / n_down;
+}
+
 TEST(Report, HasNoExternalReference) {
   const std::string html = Lower(RenderHtml(MakeReport(2, 500, true)));
   for (const char* bad : {"http://", "https://", "src=", "url(", "@import", "<link", "<iframe",
@@ -194,6 +321,27 @@ TEST(Report, EscapesEveryStringFromTheData) {
   const json plots = PlotData(html);
   EXPECT_EQ(plots["plots"][0]["series"][1]["label"], kHostileLabel);
   EXPECT_EQ(plots["plots"][1]["series"][0]["label"], std::string("measured - ") + kHostileLabel);
+
+  // The suggestion plots' heading and the verdict's message are escaped too.
+  ReportData two = MakeReport(2, 100, true);
+  AddSuggestionRows(&two);
+  two.diagnosis.suggestions[0].spec = kHostileLabel;
+  two.diagnosis.suggestions[0].confirmation = kHostileFile;
+  two.diagnosis.suggestions[0].selection = kHostileFile;
+  two.diagnosis.coverage.message = kHostileLabel;
+  const std::string page = RenderHtml(two);
+  EXPECT_EQ(page.find("pwned=1</script>"), std::string::npos);
+  EXPECT_EQ(page.find("<b>x</b>"), std::string::npos);
+  EXPECT_EQ(page.find(kHostileFile), std::string::npos);
+  EXPECT_EQ(CountOf(page, "<script"), 3);
+  EXPECT_NE(page.find("Suggestion 1: <code>&lt;/script&gt;&lt;script&gt;window.pwned=1"),
+            std::string::npos);
+  const json page_plots = PlotData(page)["plots"];
+  const json* plot = PlotTitled(page_plots,
+                                std::string("Suggestion 1 (") + kHostileLabel +
+                                    "): residual vs qd1, before and after");
+  ASSERT_NE(plot, nullptr);
+  EXPECT_EQ((*plot)["series"][1]["label"], std::string("after: refitted with ") + kHostileLabel);
 }
 
 TEST(Report, ThinsEachSeriesToTheLimitKeepingExtremes) {
@@ -376,6 +524,265 @@ TEST(Report, RejectsInconsistentInput) {
   EXPECT_EQ(plots[1]["series"][0]["y"][19], 1.0);
 }
 
+TEST(Report, PlotsEachSuggestionsResidualBeforeAndAfterAgainstQdAndQ) {
+  const int n = 600;
+  ReportData data = MakeReport(2, n, true);
+  const std::string plain = RenderHtml(data);
+  // Without residual rows, no suggestion plot.
+  EXPECT_EQ(PlotData(plain)["plots"].size(), 6u);
+  EXPECT_EQ(plain.find("<h3 class=\"plot-heading\""), std::string::npos);
+
+  AddSuggestionRows(&data);
+  const std::string html = RenderHtml(data);
+  const json plots = PlotData(html)["plots"];
+  ASSERT_EQ(plots.size(), 6u + 4u);  // two per suggestion: vs qd and vs q
+
+  struct Expected {
+    std::string title;
+    const std::vector<double>* x;
+    const Suggestion* s;
+  };
+  const Suggestion& coulomb = data.diagnosis.suggestions[0];
+  const Suggestion& cogging = data.diagnosis.suggestions[1];
+  const std::vector<Expected> expected = {
+      {"Suggestion 1 (coulomb@1): residual vs qd1, before and after", &data.joints[0].qd,
+       &coulomb},
+      {"Suggestion 1 (coulomb@1): residual vs q1, before and after", &data.joints[0].q, &coulomb},
+      {"Suggestion 2 (cogging@2:period=0.3): residual vs qd2, before and after",
+       &data.joints[1].qd, &cogging},
+      {"Suggestion 2 (cogging@2:period=0.3): residual vs q2, before and after", &data.joints[1].q,
+       &cogging}};
+  for (const Expected& e : expected) {
+    SCOPED_TRACE(e.title);
+    const json* plot = PlotTitled(plots, e.title);
+    ASSERT_NE(plot, nullptr);
+    EXPECT_EQ((*plot)["type"], "scatter");
+    EXPECT_TRUE((*plot)["zeroLine"].get<bool>());
+    ASSERT_EQ((*plot)["series"].size(), 2u);
+    EXPECT_EQ((*plot)["series"][0]["label"], "before: refitted without " + e.s->spec);
+    EXPECT_EQ((*plot)["series"][1]["label"], "after: refitted with " + e.s->spec);
+    for (int k = 0; k < 2; ++k) {
+      const json& series = (*plot)["series"][k];
+      const Vector& rows = k == 0 ? e.s->residual_before_rows : e.s->residual_after_rows;
+      ASSERT_EQ(series["x"].size(), static_cast<std::size_t>(n));
+      ASSERT_EQ(series["y"].size(), static_cast<std::size_t>(n));
+      for (int i = 0; i < n; ++i) {
+        EXPECT_NEAR(series["x"][i].get<double>(), (*e.x)[i], 1e-7 * std::abs((*e.x)[i]) + 1e-15);
+        EXPECT_NEAR(series["y"][i].get<double>(), rows[i], 1e-7 * std::abs(rows[i]) + 1e-15);
+      }
+    }
+  }
+
+  // What the eye sees, from the embedded data: the Coulomb step of 2 x 0.4 N m at qd1 = 0
+  // before the suggestion and none after; the cogging ripple in q2 before and none after.
+  const json& step = *PlotTitled(plots, expected[0].title);
+  const auto values = [](const json& a) { return a.get<std::vector<double>>(); };
+  EXPECT_NEAR(StepAtZero(values(step["series"][0]["x"]), values(step["series"][0]["y"])),
+              2 * kCoulomb, 0.02);
+  EXPECT_NEAR(StepAtZero(values(step["series"][1]["x"]), values(step["series"][1]["y"])), 0.0,
+              0.02);
+  const json& ripple = *PlotTitled(plots, expected[3].title);
+  std::vector<double> basis;
+  for (const double q : values(ripple["series"][0]["x"])) basis.push_back(Ripple(q));
+  EXPECT_NEAR(Coefficient(values(ripple["series"][0]["y"]), basis), kRippleAmplitude, 0.03);
+  EXPECT_NEAR(Coefficient(values(ripple["series"][1]["y"]), basis), 0.0, 0.03);
+
+  // Each suggestion's plots are drawn in its joint's section, under a heading that names it.
+  const std::string joint1 = Section(html, "joint-1"), joint2 = Section(html, "joint-2");
+  EXPECT_NE(joint1.find("<h3 class=\"plot-heading\">Suggestion 1: <code>coulomb@1</code>"),
+            std::string::npos);
+  EXPECT_NE(joint2.find("<h3 class=\"plot-heading\">Suggestion 2: "
+                        "<code>cogging@2:period=0.3</code>"),
+            std::string::npos);
+  EXPECT_NE(joint1.find("(RMS 0.41 &rarr; 0.05)"), std::string::npos);
+  for (const auto& [section, joint] : {std::pair{joint1, 1}, std::pair{joint2, 2}}) {
+    const std::vector<int> indices = PlotIndices(section);
+    ASSERT_EQ(indices.size(), 5u);
+    for (const int k : indices) {
+      const std::string title = plots[k]["title"];
+      const bool own = title.rfind("Joint " + std::to_string(joint) + ":", 0) == 0 ||
+                       title.rfind("Suggestion " + std::to_string(joint) + " ", 0) == 0;
+      EXPECT_TRUE(own) << "joint " << joint << " section shows '" << title << "'";
+    }
+  }
+
+  // Rows that do not match the joint's samples are refused.
+  ReportData bad = data;
+  bad.diagnosis.suggestions[1].residual_after_rows.resize(n - 1);
+  EXPECT_THROW(RenderHtml(bad), std::invalid_argument);
+  bad.diagnosis.suggestions[1].residual_before_rows.resize(n - 1);
+  try {
+    RenderHtml(bad);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("suggestion 'cogging@2:period=0.3': residual_before_rows "
+                                         "has 599 values, expected 600"),
+              std::string::npos)
+        << e.what();
+  }
+
+  // A report whose joints show other data than the diagnosed log (the demo: diagnosis on the
+  // training log, plots of the test log): the suggestions' residuals are plotted against the
+  // diagnosed log's states.
+  ReportData other = MakeReport(2, 250, true);
+  std::vector<JointStates> states(2);
+  for (int j = 0; j < 2; ++j) {
+    states[j].joint = j + 1;
+    states[j].q = data.joints[j].q;
+    states[j].qd = data.joints[j].qd;
+  }
+  other.diagnosis = data.diagnosis;
+  EXPECT_THROW(RenderHtml(other), std::invalid_argument);  // 600 rows, 250 samples
+  other.diagnosed_states = states;
+  const json other_plots = PlotData(RenderHtml(other))["plots"];
+  ASSERT_EQ(other_plots.size(), 10u);
+  const json* shown = PlotTitled(other_plots, expected[0].title);
+  ASSERT_NE(shown, nullptr);
+  ASSERT_EQ((*shown)["series"][0]["x"].size(), static_cast<std::size_t>(n));
+  EXPECT_NEAR((*shown)["series"][0]["x"][17].get<double>(), data.joints[0].qd[17],
+              1e-7 * std::abs(data.joints[0].qd[17]));
+  EXPECT_EQ(other_plots[0]["series"][0]["y"].size(), 250u);  // the joints' own plots
+  other.diagnosed_states[1].q.pop_back();
+  EXPECT_THROW(RenderHtml(other), std::invalid_argument);  // q and qd of different lengths
+}
+
+// The row of suggestion `number` in the suggestions table.
+std::string SuggestionRow(const std::string& html, int number) {
+  const std::string table = Section(html, "suggestions");
+  const std::size_t begin = table.find("<tr><td>" + std::to_string(number) + "</td>");
+  if (begin == std::string::npos) return "";
+  return table.substr(begin, table.find("</tr>", begin) - begin);
+}
+
+TEST(Report, ShowsCalibrationAndConfirmationInTheSuggestionsTable) {
+  ReportData data = MakeReport(2, 200, true);
+  AddSuggestionRows(&data);
+  const std::string html = RenderHtml(data);
+  const std::string row = SuggestionRow(html, 1);
+  ASSERT_FALSE(row.empty());
+  for (const char* part : {
+           "<td class=\"evidence\">812.3<br><span class=\"muted small\">uncorrected 5012.7",
+           "inflation &times;6.17<br><span class=\"muted small\">n<sub>eff</sub> = 162<",
+           "<td class=\"p\">2.4e-13<br><span class=\"muted small\">p = 1.2e-14<",
+           "<td class=\"size\">7.5<br><span class=\"muted small\">z = 28.5<",
+           "0.41 &rarr; 0.05<span class=\"chg better\">-88%</span>",
+           "<td class=\"confirmation\">0.4 &rarr; 0.052<span class=\"chg better\">-87%</span>"
+           "<br><span class=\"muted small\">blocks: 4/5 folds better, gap 20 rows<",
+           "<td class=\"text\">joint</td>", "<code>coulomb@1</code>"}) {
+    EXPECT_NE(row.find(part), std::string::npos) << "missing: " << part << "\nrow: " << row;
+  }
+  const std::string row2 = SuggestionRow(html, 2);
+  EXPECT_NE(row2.find("trajectories: 3/3 folds better, gap 0 rows"), std::string::npos) << row2;
+  EXPECT_NE(row2.find("<td class=\"text\">greedy</td>"), std::string::npos) << row2;
+  EXPECT_EQ(row2.find("blocks"), std::string::npos) << row2;
+}
+
+TEST(Report, ShowsTheVerdictFirstWithItsMessage) {
+  struct Case {
+    Verdict verdict;
+    const char* name;
+    const char* headline;
+  };
+  for (const Case& c : {Case{Verdict::kExplained, "explained", "Explained:"},
+                        Case{Verdict::kCoverage, "coverage", "Coverage, not missing physics"},
+                        Case{Verdict::kMissingEffect, "missing_effect", "Missing effects:"},
+                        Case{Verdict::kUnexplained, "unexplained", "Unexplained:"}}) {
+    SCOPED_TRACE(c.name);
+    ReportData data = MakeReport(2, 100, c.verdict == Verdict::kMissingEffect);
+    data.diagnosis.coverage.verdict = c.verdict;
+    data.diagnosis.coverage.message = std::string("because ") + kHostileFile;
+    const std::string html = RenderHtml(data);
+    const std::size_t verdict = html.find("<section id=\"verdict\">");
+    ASSERT_NE(verdict, std::string::npos);
+    // First in the page's main part, before the errors and the suggestions.
+    EXPECT_LT(verdict, html.find("id=\"errors\""));
+    EXPECT_LT(verdict, html.find("id=\"suggestions\""));
+    const std::string section = Section(html, "verdict");
+    EXPECT_NE(section.find(std::string("class=\"verdict big verdict-") + c.name +
+                           "\" data-verdict=\"" + c.name + "\"><b>" + c.headline),
+              std::string::npos)
+        << section;
+    EXPECT_NE(section.find("<span class=\"message\">because &lt;x&gt;&amp;&quot;</span>"),
+              std::string::npos)
+        << section;
+    // No distances: no coverage section, nor a link to it.
+    EXPECT_EQ(html.find("id=\"coverage\""), std::string::npos);
+    EXPECT_EQ(html.find("href=\"#coverage\""), std::string::npos);
+    if (c.verdict == Verdict::kCoverage) {
+      EXPECT_NE(Section(html, "suggestions").find("the error is coverage, not a missing effect"),
+                std::string::npos);
+    }
+  }
+  // A failed diagnosis says so, with its message.
+  ReportData failed = MakeReport(1, 50, false);
+  failed.diagnosis.status = DiagnosisStatus::kNumericalFailure;
+  failed.diagnosis.message = "refit not positive definite";
+  EXPECT_NE(Section(RenderHtml(failed), "verdict")
+                .find("<b>The diagnosis failed.</b> refit not positive definite"),
+            std::string::npos);
+  // Without a diagnosis, no verdict.
+  failed.has_diagnosis = false;
+  EXPECT_EQ(RenderHtml(failed).find("id=\"verdict\""), std::string::npos);
+}
+
+TEST(Report, PlotsTheDistanceToTheTrainingStatesWithLevelOne) {
+  const int points = 300;
+  ReportData data = MakeReport(2, 200, false);
+  AddCoverage(&data, 2, points);
+  const std::string html = RenderHtml(data);
+  const json plots = PlotData(html)["plots"];
+  const json* plot = PlotTitled(plots, "Distance of the log's states to the training states");
+  ASSERT_NE(plot, nullptr);
+  EXPECT_EQ((*plot)["type"], "line");
+  EXPECT_EQ((*plot)["xLabel"], "t");
+  ASSERT_EQ((*plot)["levels"].size(), 1u);
+  EXPECT_EQ((*plot)["levels"][0]["y"], 1.0);
+  ASSERT_EQ((*plot)["series"].size(), 2u);
+  const CoverageFinding& c = data.diagnosis.coverage;
+  for (int k = 0; k < 2; ++k) {
+    const json& s = (*plot)["series"][k];
+    EXPECT_EQ(s["label"], "joint " + std::to_string(k + 1));
+    ASSERT_EQ(s["y"].size(), static_cast<std::size_t>(points));
+    for (int p = 0; p < points; ++p) {
+      EXPECT_NEAR(s["x"][p].get<double>(), c.distance_time[p], 1e-9);
+      EXPECT_NEAR(s["y"][p].get<double>(), c.distance(p, k), 1e-7 * c.distance(p, k) + 1e-15);
+    }
+  }
+  // Drawn in the coverage section, which the verdict links to; the other plots have no levels.
+  const std::string section = Section(html, "coverage");
+  ASSERT_FALSE(section.empty());
+  const std::vector<int> indices = PlotIndices(section);
+  ASSERT_EQ(indices.size(), 1u);
+  EXPECT_EQ(&plots[indices[0]], plot);
+  EXPECT_NE(section.find("Error from coverage on joint 2."), std::string::npos);
+  EXPECT_NE(Section(html, "verdict").find("<a href=\"#coverage\">"), std::string::npos);
+  int with_levels = 0;
+  for (const json& p : plots) with_levels += p.contains("levels");
+  EXPECT_EQ(with_levels, 1);
+  // The findings table: the refit RMS, how much of the log is outside the training data.
+  const std::string findings = Section(html, "findings");
+  EXPECT_NE(findings.find("<th title=\"Rows of the log farther"), std::string::npos);
+  EXPECT_NE(findings.find("<tr class=\"coverage\"><td>2</td>"), std::string::npos) << findings;
+  EXPECT_NE(findings.find("31% of rows, up to 4.2 sd"), std::string::npos) << findings;
+  EXPECT_NE(findings.find("0% of rows, up to 0.93 sd"), std::string::npos) << findings;
+  EXPECT_NE(findings.find("<td>0.051<br><span class=\"muted small\">coverage</span>"),
+            std::string::npos)
+      << findings;
+  // Joint 2's section says its error is coverage; joint 1's does not.
+  EXPECT_NE(Section(html, "joint-2").find("<b>Coverage:</b> refitted on the log, the model "
+                                          "reaches 0.051 against 0.4"),
+            std::string::npos);
+  EXPECT_EQ(Section(html, "joint-1").find("<b>Coverage:</b>"), std::string::npos);
+
+  // Thinned like every series.
+  const json thinned = PlotData(RenderHtml(data, 100))["plots"];
+  EXPECT_EQ(PlotTitled(thinned, (*plot)["title"])->at("series")[1]["y"].size(), 100u);
+
+  // Times and distances that disagree are refused.
+  data.diagnosis.coverage.distance_time.resize(points - 1);
+  EXPECT_THROW(RenderHtml(data), std::invalid_argument);
+}
+
 // ---- headless browser -------------------------------------------------------------------------
 
 // Chromium's path: $STRUCTGP_CHROMIUM, else chromium or chromium-browser on the PATH; empty
@@ -526,6 +933,8 @@ TEST(ReportBrowser, RendersEveryPlotWithoutScriptErrors) {
   fs::create_directories(dir);
 
   ReportData data = MakeReport(2, 5000, true);
+  AddSuggestionRows(&data);
+  AddCoverage(&data, 3, 400);
   data.title = kHostileLabel;
   data.data_source = kHostileFile;
   data.joints[1].predictions[1].label = kHostileLabel;
@@ -551,7 +960,9 @@ TEST(ReportBrowser, RendersEveryPlotWithoutScriptErrors) {
     out << RenderHtml(data, 1500);
     ASSERT_TRUE(out.good());
   }
-  const int num_plots = 4 + 3 + 1;
+  // Joints 1 and 2: torque, residual vs qd and q, and their suggestion's two plots (joint 1
+  // also the signal over time); joint 3: torque; the coverage plot.
+  const int num_plots = 6 + 5 + 1 + 1;
 
   // 1. The DOM after the page's script has run, with its zoom/hover self-test.
   const int dom_status = RunChromium(chromium, dir, "file://" + page.string() + "#selftest",
@@ -579,6 +990,11 @@ TEST(ReportBrowser, RendersEveryPlotWithoutScriptErrors) {
     EXPECT_GT(std::stoi((*it)[1].str()), 0) << "plot " << plots << " is blank";
   }
   EXPECT_EQ(plots, num_plots);
+  // The coverage plot drew its level-1 line (its distances of joint 1 reach 1 only, those of
+  // joints 2 and 3 go above it).
+  ASSERT_TRUE(std::regex_search(dom, match, std::regex("data-levels=\"([0-9]+)\"")));
+  EXPECT_EQ(match[1].str(), "1");
+  EXPECT_EQ(CountOf(dom, "data-levels="), 1);
   // The hostile label is text, not markup.
   EXPECT_EQ(dom.find("<script>window.pwned"), std::string::npos);
   EXPECT_EQ(dom.find("<b>x</b>"), std::string::npos);

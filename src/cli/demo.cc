@@ -207,6 +207,7 @@ class DemoCommand : public Command {
     r.joints = ReportJoints(test, series);
     r.has_diagnosis = true;
     r.diagnosis = diagnosis;
+    r.diagnosed_states = report::JointStatesOf(train);  // the suggestions' residual plots
     r.errors = report_errors;
     r.notes.push_back("Simulated " + scenario.description + ".");
     r.notes.push_back(

@@ -5,6 +5,7 @@
 
 #include "commands.h"
 #include "common.h"
+#include "structgp/io/data_error.h"
 #include "structgp/io/model_file.h"
 #include "structgp/report/report.h"
 #include "structgp/report/report_data.h"
@@ -12,6 +13,9 @@
 namespace structgp {
 namespace cli {
 namespace {
+
+// Largest --significance: beyond it, a "significant" suggestion is a coin toss.
+constexpr double kMaxSignificance = 0.5;
 
 class DiagnoseCommand : public Command {
  public:
@@ -38,7 +42,19 @@ class DiagnoseCommand : public Command {
         ->capture_default_str();
     cmd->add_option("--significance", options_.significance,
                     "Family-wise error rate (Holm) over every candidate on every joint")
-        ->check(CLI::Range(1e-12, 0.5))
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+              double value = 0;
+              if (!CLI::detail::lexical_cast(text, value)) {
+                return "expected a number in (0, 0.5], e.g. 0.01, got '" + text + "'";
+              }
+              if (!(value > 0.0 && value <= kMaxSignificance)) {
+                return "expected a level in (0, 0.5] (the chance of a false suggestion that "
+                       "is accepted), e.g. 0.01, got " + text;
+              }
+              return "";
+            },
+            "in (0, 0.5]"))
         ->capture_default_str();
     cmd->add_option("--train", train_,
                     "The model's training data (CSV as --data): candidates are then scored on "
@@ -71,16 +87,30 @@ class DiagnoseCommand : public Command {
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);
     if (!train_.empty()) {
-      const RobotData train = ReadData(train_, model.num_joints());
-      options_.training_inputs = ModelInputs(model, train);
-      options_.training_targets = train.Y;
-      options_.training_times = train.t;
+      // Problems of the training file name it, and say it is the --train file.
+      try {
+        const RobotData train = ReadData(train_, model.num_joints());
+        if (data.has_time() && !train.has_time()) {
+          throw DataError(train_, 1, 0,
+                          "no 't' column, but --data " + data_ +
+                              " has one: the training data need their times too (they are "
+                              "scored with the log as separate trajectories)");
+        }
+        options_.training_inputs = ModelInputs(model, train);
+        options_.training_targets = train.Y;
+        options_.training_times = train.t;
+      } catch (const DataError& e) {
+        throw DataError(e.file(), e.line(), e.column(), "--train: " + e.message());
+      }
     }
     Diagnosis diagnosis;
     try {
       diagnosis = Diagnose(model, X, data.Y, data.t, options_);
     } catch (const std::invalid_argument& e) {
-      throw UsageError(data_ + ": " + e.what());
+      // The library names what it refuses; say which file that came from.
+      const std::string what = e.what();
+      const bool training = !train_.empty() && what.find("training_") != std::string::npos;
+      throw UsageError((training ? "--train " + train_ : data_) + ": " + what);
     }
     if (diagnosis.status != DiagnosisStatus::kOk) {
       throw NumericalError("the diagnosis failed on " + data_ + ": " + diagnosis.message);

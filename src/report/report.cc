@@ -188,6 +188,10 @@ struct Plot {
   std::string title, x_label, y_label;
   bool zero_line = false;
   bool wide = false;  // spans the page's width
+  // Horizontal reference lines (y, label), always inside the automatic y range.
+  std::vector<std::pair<double, std::string>> levels;
+  // A heading shown across the page's width before the plot (empty: none).
+  std::string heading;
   std::vector<Series> series;
 };
 
@@ -202,6 +206,18 @@ void AppendPlotJson(const Plot& plot, int max_points, std::string* out) {
   AppendJsonString(plot.y_label, out);
   *out += ",\"zeroLine\":";
   *out += plot.zero_line ? "true" : "false";
+  if (!plot.levels.empty()) {
+    *out += ",\"levels\":[";
+    for (std::size_t l = 0; l < plot.levels.size(); ++l) {
+      if (l > 0) *out += ',';
+      *out += "{\"y\":";
+      AppendJsonNumber(plot.levels[l].first, out);
+      *out += ",\"label\":";
+      AppendJsonString(plot.levels[l].second, out);
+      *out += '}';
+    }
+    *out += ']';
+  }
   *out += ",\"series\":[";
   for (std::size_t s = 0; s < plot.series.size(); ++s) {
     const Series& series = plot.series[s];
@@ -228,6 +244,28 @@ void AppendPlotJson(const Plot& plot, int max_points, std::string* out) {
 }
 
 // ---- input checks ---------------------------------------------------------------------------
+
+// The states of joint `joint` (1-based) on the diagnosed log: ReportData::diagnosed_states when
+// given, else the joint's series; false when the report has none.
+bool DiagnosedStates(const ReportData& data, int joint, const std::vector<double>** q,
+                     const std::vector<double>** qd) {
+  if (!data.diagnosed_states.empty()) {
+    for (const JointStates& s : data.diagnosed_states) {
+      if (s.joint != joint) continue;
+      *q = &s.q;
+      *qd = &s.qd;
+      return true;
+    }
+    return false;
+  }
+  for (const JointData& j : data.joints) {
+    if (j.joint != joint) continue;
+    *q = &j.q;
+    *qd = &j.qd;
+    return true;
+  }
+  return false;
+}
 
 void CheckLength(const JointData& joint, const std::string& what, std::size_t got,
                  bool may_be_empty) {
@@ -257,6 +295,46 @@ void CheckInput(const ReportData& data, int max_points_per_plot) {
       for (const TimeSeries& series : plot.series) {
         CheckLength(joint, "the signal '" + series.label + "'", series.values.size(), false);
       }
+    }
+  }
+  for (const JointStates& s : data.diagnosed_states) {
+    if (!s.q.empty() && !s.qd.empty() && s.q.size() != s.qd.size()) {
+      throw std::invalid_argument("RenderHtml: diagnosed_states of joint " +
+                                  std::to_string(s.joint) + ": q has " +
+                                  std::to_string(s.q.size()) + " values, qd " +
+                                  std::to_string(s.qd.size()) + " (expected the same)");
+    }
+  }
+  if (data.has_diagnosis) {
+    const Diagnosis& d = data.diagnosis;
+    for (const Suggestion& s : d.suggestions) {
+      const std::string what = "RenderHtml: suggestion '" + s.spec + "': ";
+      const Eigen::Index before = s.residual_before_rows.size();
+      const Eigen::Index after = s.residual_after_rows.size();
+      if (before != after) {
+        throw std::invalid_argument(what + "residual_before_rows has " + std::to_string(before) +
+                                    " values, residual_after_rows " + std::to_string(after) +
+                                    " (expected the same)");
+      }
+      const std::vector<double>*q = nullptr, *qd = nullptr;
+      if (before == 0 || !DiagnosedStates(data, s.joint, &q, &qd)) continue;
+      const std::size_t states = std::max(q->size(), qd->size());
+      if (static_cast<std::size_t>(before) != states) {
+        throw std::invalid_argument(
+            what + "residual_before_rows has " + std::to_string(before) + " values, expected " +
+            std::to_string(states) + " (one per row of the diagnosed log: the " +
+            (data.diagnosed_states.empty() ? "samples of joint " + std::to_string(s.joint)
+                                           : "diagnosed_states of joint " +
+                                                 std::to_string(s.joint)) +
+            ") or none");
+      }
+    }
+    const CoverageFinding& c = d.coverage;
+    if (c.distance.size() != 0 && c.distance_time.size() != c.distance.rows()) {
+      throw std::invalid_argument("RenderHtml: coverage: distance has " +
+                                  std::to_string(c.distance.rows()) + " rows, distance_time " +
+                                  std::to_string(c.distance_time.size()) +
+                                  " values (expected the same)");
     }
   }
   for (const ModelErrors& e : data.errors) {
@@ -333,6 +411,68 @@ std::vector<Plot> JointPlots(const JointData& joint) {
   };
   if (!joint.qd.empty()) plots.push_back(residual_plot(joint.qd, "qd" + j));
   if (!joint.q.empty()) plots.push_back(residual_plot(joint.q, "q" + j));
+  return plots;
+}
+
+std::vector<double> ToStd(const Vector& v) { return std::vector<double>(v.data(), v.data() + v.size()); }
+
+// Suggestion `number` (1-based) of the diagnosis, on its joint: the joint's residual on the
+// diagnosed log against the joint's qd and q there (DiagnosedStates), the model refitted there without and with the effect, on one plot
+// (the same axes: a Coulomb step or a cogging ripple in the first series, gone in the second).
+// None when the suggestion has no residual rows.
+std::vector<Plot> SuggestionPlots(const ReportData& data, const Suggestion& s, int number) {
+  std::vector<Plot> plots;
+  const std::vector<double>*q = nullptr, *qd = nullptr;
+  if (s.residual_before_rows.size() == 0 || !DiagnosedStates(data, s.joint, &q, &qd)) {
+    return plots;
+  }
+  const std::string j = std::to_string(s.joint);
+  const std::vector<double> before = ToStd(s.residual_before_rows);
+  const std::vector<double> after = ToStd(s.residual_after_rows);
+  const auto plot = [&](const std::vector<double>& x, const std::string& variable) {
+    Plot p;
+    p.type = "scatter";
+    p.title = "Suggestion " + std::to_string(number) + " (" + s.spec + "): residual vs " +
+              variable + ", before and after";
+    p.x_label = variable;
+    p.y_label = "residual torque";
+    p.zero_line = true;
+    p.series.push_back({"before: refitted without " + s.spec, "residual", x, before, {}, {}});
+    p.series.push_back({"after: refitted with " + s.spec, "residual", x, after, {}, {}});
+    return p;
+  };
+  if (!qd->empty()) plots.push_back(plot(*qd, "qd" + j));
+  if (!q->empty()) plots.push_back(plot(*q, "q" + j));
+  if (!plots.empty()) {
+    plots.front().heading = "Suggestion " + std::to_string(number) + ": <code>" +
+                            Escape(s.spec) + "</code> &mdash; residual of joint " + j +
+                            " on the diagnosed log, the model refitted there without and with the effect "
+                            "(RMS " + FormatNumber(s.residual_rms_before, kTableDigits) +
+                            " &rarr; " + FormatNumber(s.residual_rms_after, kTableDigits) + ")";
+  }
+  return plots;
+}
+
+// Distance of the log's states to the nearest training state, per joint, over time, with the
+// level 1 (one training standard deviation) marked. None without the distances.
+std::vector<Plot> CoveragePlots(const ReportData& data) {
+  const CoverageFinding& c = data.diagnosis.coverage;
+  std::vector<Plot> plots;
+  if (!data.has_diagnosis || c.distance.size() == 0) return plots;
+  Plot p;
+  p.title = "Distance of the log's states to the training states";
+  const bool has_time = !data.joints.empty() && !data.joints.front().t.empty();
+  p.x_label = has_time ? "t" : "sample";
+  p.y_label = "distance (training sd)";
+  p.wide = true;
+  p.levels.push_back({1.0, "1 = one training sd"});
+  const std::vector<double> t = ToStd(c.distance_time);
+  for (Eigen::Index k = 0; k < c.distance.cols(); ++k) {
+    std::vector<double> y(static_cast<std::size_t>(c.distance.rows()));
+    for (Eigen::Index r = 0; r < c.distance.rows(); ++r) y[static_cast<std::size_t>(r)] = c.distance(r, k);
+    p.series.push_back({"joint " + std::to_string(k + 1), "distance", t, std::move(y), {}, {}});
+  }
+  plots.push_back(std::move(p));
   return plots;
 }
 
@@ -439,14 +579,72 @@ std::string Parameters(const std::map<std::string, double>& params) {
   return s;
 }
 
+// The verdict of the diagnosis, first on the page: what the error on the log is about.
+void AppendVerdict(const ReportData& data, std::string* html) {
+  const Diagnosis& d = data.diagnosis;
+  *html += "<section id=\"verdict\">\n<h2>Verdict</h2>\n";
+  if (d.status != DiagnosisStatus::kOk) {
+    *html += "<p class=\"verdict big verdict-unexplained\" data-verdict=\"" +
+             std::string(ToString(d.status)) + "\"><b>The diagnosis failed.</b> " +
+             Escape(d.message) + "</p>\n</section>\n";
+    return;
+  }
+  const CoverageFinding& c = d.coverage;
+  const char* headline = "";
+  switch (c.verdict) {
+    case Verdict::kExplained:
+      headline = "Explained: the model predicts this log to the noise.";
+      break;
+    case Verdict::kCoverage:
+      headline =
+          "Coverage, not missing physics: the training data do not reach these motions. "
+          "Retrain with them.";
+      break;
+    case Verdict::kMissingEffect:
+      headline = "Missing effects: the model lacks physics that the suggestions below add.";
+      break;
+    case Verdict::kUnexplained:
+      headline =
+          "Unexplained: the error stays above the noise, and no candidate effect explains it.";
+      break;
+  }
+  const std::string verdict = ToString(c.verdict);
+  *html += "<p class=\"verdict big verdict-" + verdict + "\" data-verdict=\"" + verdict +
+           "\"><b>" + headline + "</b>";
+  if (!c.message.empty()) *html += "<br><span class=\"message\">" + Escape(c.message) + "</span>";
+  *html += "</p>\n";
+  if (c.distance.size() != 0) {
+    *html +=
+        "<p><a href=\"#coverage\">Where the log leaves the training states</a>: distance to "
+        "the training data per joint, over time.</p>\n";
+  }
+  *html += "</section>\n";
+}
+
+// "1.23e-05" for p-values, "<1e-300" when it underflowed.
+std::string FormatP(double p) {
+  if (p == 0.0) return "&lt;1e-300";
+  return FormatNumber(p, 2);
+}
+
 void AppendSuggestions(const Diagnosis& d, std::string* html) {
   *html += "<section id=\"suggestions\">\n<h2>Suggested effects</h2>\n";
   if (d.suggestions.empty()) {
-    *html +=
-        "<p class=\"verdict\"><b>No missing effect was found.</b> No candidate effect "
-        "raised the evidence and lowered the held-out error of a joint enough to be "
-        "suggested: the model explains these data as far as the candidates can tell.</p>\n"
-        "</section>\n";
+    std::string why =
+        "No candidate effect raised the calibrated evidence, passed the multiplicity-controlled "
+        "test and the effect-size bars, and lowered the error on unseen data enough to be "
+        "suggested";
+    switch (d.coverage.verdict) {
+      case Verdict::kCoverage:
+        why += ": the error is coverage, not a missing effect (see the verdict).";
+        break;
+      case Verdict::kUnexplained:
+        why += ", although the model refitted on the log stays above the noise.";
+        break;
+      default:
+        why += ": the model explains these data as far as the candidates can tell.";
+    }
+    *html += "<p class=\"verdict\"><b>No missing effect was found.</b> " + why + "</p>\n</section>\n";
     return;
   }
   std::string all_specs;
@@ -456,24 +654,58 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
            " found</b>, best first. To add them all: <code>--effects " + Escape(all_specs) +
            "</code></p>\n";
   *html +=
-      "<table>\n<thead><tr><th>#</th><th class=\"text\">Effect</th><th>Joint</th>"
-      "<th title=\"Gain in log marginal likelihood of the joint's torque\">Evidence gain "
-      "(nats)</th><th title=\"The model refitted on all these data without and with the "
-      "effect\">Residual RMS before &rarr; after</th><th title=\"Blocked cross-validation on "
-      "contiguous blocks: each block predicted from the others\">Held-out RMS before &rarr; "
-      "after</th><th class=\"text\">Parameters</th><th class=\"text\">--effects</th>"
+      "<table class=\"suggestions\">\n<thead><tr><th>#</th><th class=\"text\">Effect</th>"
+      "<th>Joint</th>"
+      "<th title=\"Gain in log marginal likelihood of the joint's torque, its data term "
+      "corrected for autocorrelated residuals; below: with every row an independent "
+      "sample\">Evidence gain (nats)</th>"
+      "<th title=\"Factor by which autocorrelation overstates the uncorrected evidence (rows / "
+      "effective samples), and the effective number of independent samples\">Autocorrelation"
+      "</th>"
+      "<th title=\"p-value of the calibrated statistic after the multiplicity correction over "
+      "every candidate on every joint; below: before it\">p (adjusted)</th>"
+      "<th title=\"RMS of the change the effect makes to the fitted torque over the joint's "
+      "noise; below: the effect against its posterior std\">Effect / noise</th>"
+      "<th title=\"The model refitted on all these data without and with the effect\">Residual "
+      "RMS before &rarr; after</th>"
+      "<th title=\"Confirmation on unseen data: each trajectory (or contiguous block, with a "
+      "gap on each side) predicted from the others\">Held-out RMS before &rarr; after</th>"
+      "<th class=\"text\" title=\"greedy: chosen one at a time; joint: chosen together with the "
+      "joint's other friction-like effects\">Selection</th>"
+      "<th class=\"text\">Parameters</th><th class=\"text\">--effects</th>"
       "</tr></thead>\n<tbody>\n";
+  const auto below = [](const std::string& text) {
+    return "<br><span class=\"muted small\">" + text + "</span>";
+  };
   for (std::size_t i = 0; i < d.suggestions.size(); ++i) {
     const Suggestion& s = d.suggestions[i];
-    *html += "<tr><td>" + std::to_string(i + 1) + "</td><td class=\"text\"><b>" + Escape(s.effect) +
-             "</b></td><td>" + std::to_string(s.joint) + "</td><td>" + FormatFixed(s.score, 1) +
-             "</td><td>" + FormatNumber(s.residual_rms_before, kTableDigits) + " &rarr; " +
+    std::string confirmation;
+    if (!s.confirmation.empty()) {
+      confirmation = Escape(s.confirmation) + ": " + std::to_string(s.folds_improved) + "/" +
+                     std::to_string(s.confirmation_folds) + " folds better, gap " +
+                     std::to_string(s.confirmation_gap) + " rows";
+    }
+    *html += "<tr><td>" + std::to_string(i + 1) + "</td><td class=\"text\"><b>" +
+             Escape(s.effect) + "</b></td><td>" + std::to_string(s.joint) + "</td>";
+    *html += "<td class=\"evidence\">" + FormatFixed(s.score, 1) +
+             below("uncorrected " + FormatFixed(s.score_uncorrected, 1)) + "</td>";
+    *html += "<td class=\"autocorrelation\">inflation &times;" +
+             FormatNumber(s.inflation, 3) +
+             below("n<sub>eff</sub> = " + FormatFixed(s.effective_samples, 0)) + "</td>";
+    *html += "<td class=\"p\">" + FormatP(s.adjusted_p_value) + below("p = " + FormatP(s.p_value)) +
+             "</td>";
+    *html += "<td class=\"size\">" + FormatNumber(s.effect_to_noise, 3) +
+             below("z = " + FormatNumber(s.z, 3)) + "</td>";
+    *html += "<td>" + FormatNumber(s.residual_rms_before, kTableDigits) + " &rarr; " +
              FormatNumber(s.residual_rms_after, kTableDigits) +
-             ChangeBadge(s.residual_rms_before, s.residual_rms_after) + "</td><td>" +
-             FormatNumber(s.rms_before, kTableDigits) + " &rarr; " +
-             FormatNumber(s.rms_after, kTableDigits) + ChangeBadge(s.rms_before, s.rms_after) +
-             "</td><td class=\"text\">" + Parameters(s.params) + "</td><td class=\"text\"><code>" +
-             Escape(s.spec) + "</code></td></tr>\n";
+             ChangeBadge(s.residual_rms_before, s.residual_rms_after) + "</td>";
+    *html += "<td class=\"confirmation\">" + FormatNumber(s.rms_before, kTableDigits) +
+             " &rarr; " + FormatNumber(s.rms_after, kTableDigits) +
+             ChangeBadge(s.rms_before, s.rms_after) +
+             (confirmation.empty() ? std::string() : below(confirmation)) + "</td>";
+    *html += "<td class=\"text\">" + Escape(s.selection) + "</td><td class=\"text\">" +
+             Parameters(s.params) + "</td><td class=\"text\"><code>" + Escape(s.spec) +
+             "</code></td></tr>\n";
   }
   *html += "</tbody>\n</table>\n</section>\n";
 }
@@ -491,25 +723,89 @@ std::string Concentrations(const JointFinding& f) {
   return s;
 }
 
+bool IsCoverageJoint(const Diagnosis& d, int joint) {
+  const std::vector<int>& j = d.coverage.coverage_joints;
+  return std::find(j.begin(), j.end(), joint) != j.end();
+}
+
 void AppendFindings(const Diagnosis& d, std::string* html) {
   if (d.joints.empty()) return;
+  bool distances = false;
+  for (const JointFinding& f : d.joints) distances = distances || f.max_distance >= 0;
   *html +=
       "<section id=\"findings\">\n<h2>Findings per joint</h2>\n<table>\n<thead><tr>"
       "<th>Joint</th><th>Residual RMS</th><th>nMSE</th><th title=\"From successive "
-      "differences of the residual\">Noise std (estimate)</th><th class=\"text\">Residual "
-      "concentrates along</th></tr></thead>\n<tbody>\n";
+      "differences of the residual\">Noise std (estimate)</th><th title=\"The model refitted "
+      "on the log, without any effect: near the noise when the model class explains the "
+      "log\">Refit RMS</th>";
+  if (distances) {
+    *html +=
+        "<th title=\"Rows of the log farther than one training standard deviation from every "
+        "training state, and the largest distance\">Outside the training data</th>";
+  }
+  *html += "<th class=\"text\">Residual concentrates along</th></tr></thead>\n<tbody>\n";
   for (const JointFinding& f : d.joints) {
-    *html += "<tr><td>" + std::to_string(f.joint) + "</td><td>" +
-             FormatNumber(f.rms, kTableDigits) + "</td><td>" + FormatNumber(f.nmse, kTableDigits) +
-             "</td><td>" + FormatNumber(f.noise_std_estimate, kTableDigits) +
-             "</td><td class=\"text\">" + Concentrations(f) + "</td></tr>\n";
+    const bool coverage = IsCoverageJoint(d, f.joint);
+    *html += std::string("<tr") + (coverage ? " class=\"coverage\"" : "") + "><td>" +
+             std::to_string(f.joint) + "</td><td>" + FormatNumber(f.rms, kTableDigits) +
+             "</td><td>" + FormatNumber(f.nmse, kTableDigits) + "</td><td>" +
+             FormatNumber(f.noise_std_estimate, kTableDigits) + "</td><td>" +
+             FormatNumber(f.refit_rms, kTableDigits) +
+             (coverage ? "<br><span class=\"muted small\">coverage</span>" : "") + "</td>";
+    if (distances) {
+      *html += "<td>" +
+               (f.max_distance >= 0 ? FormatFixed(100.0 * f.outside_fraction, 0) +
+                                          "% of rows, up to " +
+                                          FormatNumber(f.max_distance, 3) + " sd"
+                                    : std::string(kMissing)) +
+               "</td>";
+    }
+    *html += "<td class=\"text\">" + Concentrations(f) + "</td></tr>\n";
   }
   *html += "</tbody>\n</table>\n</section>\n";
 }
 
-// One section per joint with its plots (`wide`: one entry per plot, whether it spans the
-// page); `next_plot` numbers the plots across the page.
-void AppendJoint(const ReportData& data, const JointData& joint, const std::vector<bool>& wide,
+// Where a plot goes on the page: whether it spans the page's width, and the heading (HTML)
+// shown before it.
+struct Slot {
+  bool wide = false;
+  std::string heading;
+};
+
+void AppendPlotSlots(const std::vector<Slot>& slots, int* next_plot, std::string* html) {
+  *html += "<div class=\"plots\">\n";
+  for (const Slot& slot : slots) {
+    if (!slot.heading.empty()) *html += "<h3 class=\"plot-heading\">" + slot.heading + "</h3>\n";
+    *html += std::string("<div class=\"plot") + (slot.wide ? " wide" : "") + "\" data-plot=\"" +
+             std::to_string((*next_plot)++) + "\"></div>\n";
+  }
+  *html += "</div>\n";
+}
+
+// The coverage section: the distance of the log to the training states over time.
+void AppendCoverage(const Diagnosis& d, const std::vector<Slot>& slots, int* next_plot,
+                    std::string* html) {
+  if (slots.empty()) return;
+  *html +=
+      "<section id=\"coverage\">\n<h2>Where the log leaves the training data</h2>\n<p>Distance "
+      "of each state of the log to the nearest training state, per joint, in the joint's "
+      "(q, qd, qdd) standardised by the training data (the largest of each stretch of rows). "
+      "Above 1 (dashed line), the log is more than one training standard deviation from "
+      "anything the model was trained on: there it extrapolates.</p>\n";
+  if (!d.coverage.coverage_joints.empty()) {
+    std::string joints;
+    for (const int j : d.coverage.coverage_joints) {
+      joints += (joints.empty() ? "" : ", ") + std::to_string(j);
+    }
+    *html += "<p>Error from coverage on joint" +
+             std::string(d.coverage.coverage_joints.size() > 1 ? "s " : " ") + joints + ".</p>\n";
+  }
+  AppendPlotSlots(slots, next_plot, html);
+  *html += "</section>\n";
+}
+
+// One section per joint with its plots; `next_plot` numbers the plots across the page.
+void AppendJoint(const ReportData& data, const JointData& joint, const std::vector<Slot>& slots,
                  int* next_plot, std::string* html) {
   const std::string j = std::to_string(joint.joint);
   *html += "<section class=\"joint\" id=\"joint-" + j + "\">\n<h2>Joint " + j + "</h2>\n";
@@ -524,6 +820,12 @@ void AppendJoint(const ReportData& data, const JointData& joint, const std::vect
                  Escape(f.concentrations.front().variable) + "</b>.";
       }
       *html += "</p>\n";
+      if (IsCoverageJoint(data.diagnosis, f.joint)) {
+        *html += "<p class=\"verdict verdict-coverage\"><b>Coverage:</b> refitted on the log, "
+                 "the model reaches " + FormatNumber(f.refit_rms, kTableDigits) +
+                 " against " + FormatNumber(f.rms, kTableDigits) +
+                 " as trained: the training data do not cover these motions.</p>\n";
+      }
     }
     for (const Suggestion& s : data.diagnosis.suggestions) {
       if (s.joint != joint.joint) continue;
@@ -531,16 +833,12 @@ void AppendJoint(const ReportData& data, const JointData& joint, const std::vect
                FormatFixed(s.score, 1) + " nats).</p>\n";
     }
   }
-  if (wide.empty()) {
+  if (slots.empty()) {
     *html += "<p class=\"muted\">No samples.</p>\n</section>\n";
     return;
   }
-  *html += "<div class=\"plots\">\n";
-  for (const bool w : wide) {
-    *html += std::string("<div class=\"plot") + (w ? " wide" : "") + "\" data-plot=\"" +
-             std::to_string((*next_plot)++) + "\"></div>\n";
-  }
-  *html += "</div>\n</section>\n";
+  AppendPlotSlots(slots, next_plot, html);
+  *html += "</section>\n";
 }
 
 }  // namespace
@@ -548,18 +846,31 @@ void AppendJoint(const ReportData& data, const JointData& joint, const std::vect
 std::string RenderHtml(const ReportData& data, int max_points_per_plot) {
   CheckInput(data, max_points_per_plot);
 
-  // The plots' data, one joint at a time (so that only one joint's copies are held at once).
+  // The plots' data, one joint at a time (so that only one joint's copies are held at once):
+  // per joint its own plots, then those of each suggestion on it; the coverage plot last.
   std::string plot_json;
-  std::vector<std::vector<bool>> layout;  // per joint, per plot: wide
+  std::vector<std::vector<Slot>> layout;  // per joint, per plot
+  std::vector<Slot> coverage_layout;
   std::size_t num_plots = 0;
+  const auto add = [&](const Plot& plot, std::vector<Slot>* slots) {
+    if (num_plots++ > 0) plot_json += ",\n";
+    AppendPlotJson(plot, max_points_per_plot, &plot_json);
+    slots->push_back({plot.wide, plot.heading});
+  };
   for (const JointData& joint : data.joints) {
     layout.emplace_back();
-    for (const Plot& plot : JointPlots(joint)) {
-      if (num_plots++ > 0) plot_json += ",\n";
-      AppendPlotJson(plot, max_points_per_plot, &plot_json);
-      layout.back().push_back(plot.wide);
+    for (const Plot& plot : JointPlots(joint)) add(plot, &layout.back());
+    if (!data.has_diagnosis) continue;
+    for (std::size_t k = 0; k < data.diagnosis.suggestions.size(); ++k) {
+      const Suggestion& s = data.diagnosis.suggestions[k];
+      if (s.joint != joint.joint) continue;
+      for (const Plot& plot : SuggestionPlots(data, s, static_cast<int>(k) + 1)) {
+        add(plot, &layout.back());
+      }
     }
   }
+  for (const Plot& plot : CoveragePlots(data)) add(plot, &coverage_layout);
+  const int coverage_first_plot = static_cast<int>(num_plots - coverage_layout.size());
 
   std::string html;
   html += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
@@ -582,16 +893,20 @@ std::string RenderHtml(const ReportData& data, int max_points_per_plot) {
 
   AppendHeader(data, &html);
   html += "<main>\n";
+  if (data.has_diagnosis) AppendVerdict(data, &html);
   AppendErrors(data, &html);
   if (data.has_diagnosis) {
     AppendSuggestions(data.diagnosis, &html);
     AppendFindings(data.diagnosis, &html);
+    int next = coverage_first_plot;
+    AppendCoverage(data.diagnosis, coverage_layout, &next, &html);
   }
   if (num_plots > 0) {
     html +=
         "<p class=\"hint\">Plots: drag to zoom (time range, or a box on the residual "
         "plots), double-click to reset, hover for values, click a legend entry to hide or "
-        "show it. Residual = measured - the first prediction.</p>\n"
+        "show it. Residual = measured - the first prediction; a suggestion's plots show the "
+        "joint's residual with the model refitted on the log without and with the effect.</p>\n"
         "<noscript><p>The plots need JavaScript.</p></noscript>\n";
   }
   int next_plot = 0;

@@ -11,11 +11,14 @@
 //    data-errors (and shows them), so that a headless browser's DOM dump tells whether the page
 //    worked.
 //  * <script type="application/json" id="report-data"> holds {"plots": [...]}; each plot is
-//    {type: "line" | "scatter", title, xLabel, yLabel, zeroLine, series: [{label, role, samples,
-//    x, y, lo?, hi?}]} where non-finite numbers are null (drawn as gaps / skipped).
+//    {type: "line" | "scatter", title, xLabel, yLabel, zeroLine, levels?: [{y, label}],
+//    series: [{label, role, samples, x, y, lo?, hi?}]} where non-finite numbers are null (drawn
+//    as gaps / skipped); levels are dashed horizontal reference lines, always in the automatic
+//    y range.
 //  * <div class="plot" data-plot="k"> is where plot k is drawn. After drawing, the element gets
-//    data-marks (points drawn inside the view) and the status data-plots-rendered (plots with at
-//    least one mark) and data-state="done".
+//    data-marks (points drawn inside the view), data-levels (reference lines drawn, on plots that
+//    have levels) and the status data-plots-rendered (plots with at least one mark) and
+//    data-state="done".
 //  * With "#selftest" in the address, every plot is zoomed, hovered and reset by synthetic
 //    pointer events and the outcome written to the status's data-selftest.
 
@@ -60,12 +63,21 @@ code { font-family: "DejaVu Sans Mono", Menlo, Consolas, monospace; font-size: 0
 .verdict { padding: 10px 14px; margin: 0.6em 0; border-left: 4px solid var(--muted);
            background: #f8f9fa; }
 .verdict.found { border-left-color: var(--good); background: var(--good-bg); }
+.verdict.big { font-size: 1.1em; padding: 12px 16px; }
+.verdict .message { display: inline-block; margin-top: 4px; font-size: 0.92em; }
+.verdict-explained { border-left-color: var(--good); background: var(--good-bg); }
+.verdict-missing_effect { border-left-color: #1f6fb4; background: #e7f1fb; }
+.verdict-coverage { border-left-color: #e8590c; background: #fff4e6; }
+.verdict-unexplained { border-left-color: var(--bad); background: var(--bad-bg); }
+tr.coverage td { background: #fff4e6; }
+.small { font-size: 0.85em; }
 .muted, .hint { color: var(--muted); }
 .hint { font-size: 0.9em; }
 .status.failed { display: block; margin: 8px 0; padding: 8px 12px; color: var(--bad);
                  background: var(--bad-bg); border: 1px solid var(--bad); border-radius: 4px; }
 .plots { display: grid; grid-template-columns: minmax(0, 1fr) minmax(0, 1fr); gap: 14px 22px; }
 .plot.wide { grid-column: 1 / -1; }
+.plot-heading { grid-column: 1 / -1; font-size: 1em; margin: 0.8em 0 0; }
 .plot-title { font-weight: 600; }
 .plot-note { color: var(--muted); font-size: 0.85em; margin-left: 8px; font-weight: normal; }
 .legend { display: flex; flex-wrap: wrap; gap: 2px 16px; font-size: 0.9em; margin: 2px 0 4px; }
@@ -116,6 +128,7 @@ inline constexpr char kReportScript[] = R"js(
   // ---- constants --------------------------------------------------------------------------
   var MARGIN = {left: 68, right: 16, top: 10, bottom: 42};  // px around the plot area
   var MEASURED_COLOR = '#343a40';
+  var LEVEL_COLOR = '#c92a2a';  // reference lines (levels)
   var PALETTE = ['#1f6fb4', '#e8590c', '#2b8a3e', '#7048e8', '#c2255c', '#0b7285'];
   var BAND_ALPHA = 0.18;      // opacity of the +-2 sigma bands
   var POINT_ALPHA = 0.6;      // opacity of scatter points (overplotting stays readable)
@@ -284,8 +297,12 @@ inline constexpr char kReportScript[] = R"js(
   Plot.prototype.computeView = function () {
     var x = this.view ? this.view.x
                       : padded(this.extent('x'), this.scatter ? SCATTER_X_PADDING : 0);
-    var y = this.view && this.view.y ? this.view.y
-                                     : padded(this.extent('y', this.view ? x : null), Y_PADDING);
+    var y = this.view && this.view.y ? this.view.y : null;
+    if (!y) {
+      var e = this.extent('y', this.view ? x : null);
+      (this.spec.levels || []).forEach(function (level) { e.add(level.y); });
+      y = padded(e, Y_PADDING);
+    }
     return {x: x, y: y};
   };
 
@@ -348,6 +365,7 @@ inline constexpr char kReportScript[] = R"js(
       ctx.stroke();
       ctx.setLineDash([]);
     }
+    this.drawLevels(ctx);
     var marks = 0, i;
     for (i = 0; i < this.spec.series.length; ++i) {
       if (this.visible[i] && this.spec.series[i].lo) this.drawBand(ctx, i);
@@ -408,6 +426,30 @@ inline constexpr char kReportScript[] = R"js(
     ctx.textBaseline = 'middle';
     ctx.fillText(this.spec.yLabel, 0, 0);
     ctx.restore();
+  };
+
+  // Dashed horizontal reference lines with their labels (spec.levels), where in view.
+  Plot.prototype.drawLevels = function (ctx) {
+    var a = this.area, self = this, drawn = 0;
+    (this.spec.levels || []).forEach(function (level) {
+      if (!isNum(level.y) || level.y < self.current.y[0] || level.y > self.current.y[1]) return;
+      ++drawn;
+      var py = Math.round(self.sy(level.y)) + 0.5;
+      ctx.strokeStyle = LEVEL_COLOR;
+      ctx.lineWidth = 1.5;
+      ctx.setLineDash([6, 4]);
+      ctx.beginPath();
+      ctx.moveTo(a.left, py);
+      ctx.lineTo(a.left + a.width, py);
+      ctx.stroke();
+      ctx.setLineDash([]);
+      ctx.fillStyle = LEVEL_COLOR;
+      ctx.font = '11px system-ui, "DejaVu Sans", sans-serif';
+      ctx.textAlign = 'right';
+      ctx.textBaseline = 'bottom';
+      ctx.fillText(level.label, a.left + a.width - 4, py - 2);
+    });
+    if (this.spec.levels) this.container.setAttribute('data-levels', String(drawn));
   };
 
   // Draws series i as a line broken at missing values; returns the points inside the view.

@@ -75,6 +75,23 @@ std::vector<JointData> JointSeries(const RobotData& data,
   return joints;
 }
 
+std::vector<JointStates> JointStatesOf(const RobotData& data) {
+  const int N = data.num_joints;
+  const Eigen::Index m = data.size();
+  std::vector<JointStates> states(static_cast<size_t>(N));
+  for (int j = 0; j < N; ++j) {
+    JointStates& s = states[static_cast<size_t>(j)];
+    s.joint = j + 1;
+    s.q.resize(static_cast<size_t>(m));
+    s.qd.resize(static_cast<size_t>(m));
+    for (Eigen::Index i = 0; i < m; ++i) {
+      s.q[static_cast<size_t>(i)] = data.X(i, j);
+      s.qd[static_cast<size_t>(i)] = data.X(i, N + j);
+    }
+  }
+  return states;
+}
+
 ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
                                const Diagnosis& diagnosis) {
   const ModelPredictions p = Predict(model, data);

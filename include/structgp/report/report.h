@@ -3,10 +3,13 @@
 
 /// @file
 /// The diagnosis report: one self-contained HTML file (no network, no external scripts) with,
-/// per joint, measured vs predicted torque over time with a +-2 sigma band, the residual
-/// against qd and against q (where a friction step or a cogging ripple shows), the ranked
-/// suggestions with their evidence, for a comparison the errors of each model per joint, and
-/// signals over time such as a replay's one-step-ahead error (SignalPlot).
+/// the diagnosis' verdict first; per joint, measured vs predicted torque over time with a
+/// +-2 sigma band, the residual against qd and against q (where a friction step or a cogging
+/// ripple shows), and for each suggestion on the joint the residual on the diagnosed log
+/// against qd and q before and after it; the ranked suggestions with their calibration and
+/// confirmation numbers; the distance of the log to the training states over time (when the
+/// diagnosis has it); for a comparison, the errors of each model per joint; and signals over
+/// time such as a replay's one-step-ahead error (SignalPlot).
 /// Plots are interactive (zoom by dragging, double-click to reset, hover for values).
 
 #include <string>
@@ -47,6 +50,12 @@ struct JointData {
   std::vector<SignalPlot> signal_plots;       ///< more plots over time (may be empty)
 };
 
+/// The states of one joint on the diagnosed log, one per row of the diagnosis.
+struct JointStates {
+  int joint = 0;                ///< 1-based
+  std::vector<double> q, qd;    ///< position and velocity (either may be empty)
+};
+
 /// Errors of one model, per joint.
 struct ModelErrors {
   std::string label;
@@ -60,6 +69,11 @@ struct ReportData {
   std::vector<JointData> joints;
   bool has_diagnosis = false;
   Diagnosis diagnosis;              ///< when has_diagnosis
+  /// The diagnosed log's states per joint, when `joints` show other data (the demo diagnoses
+  /// its training log and plots its test log): each suggestion's residual before and after it
+  /// (Suggestion::residual_before_rows, one per row of the diagnosed log) is plotted against
+  /// these. Empty: the diagnosed log is the data of `joints`.
+  std::vector<JointStates> diagnosed_states;
   std::vector<ModelErrors> errors;  ///< one per model (compare: before, after)
   std::vector<std::string> notes;   ///< free text lines shown at the top
 };

@@ -49,6 +49,10 @@ ModelErrors ToModelErrors(const std::string& label, const PredictionErrors& erro
 std::vector<JointData> JointSeries(const RobotData& data,
                                    const std::vector<ModelPredictions>& models);
 
+/// The states (q, qd) of each joint of `data`: ReportData::diagnosed_states when a report
+/// plots other data than the diagnosed ones.
+std::vector<JointStates> JointStatesOf(const RobotData& data);
+
 /// The report of a diagnosis of `model` on `data`: title, the model's predictions with their
 /// error bars, its errors and the findings. Throws as Predict.
 ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
