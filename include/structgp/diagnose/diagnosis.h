@@ -104,8 +104,9 @@ struct DiagnosisOptions {
   Matrix training_inputs;
   Matrix training_targets;
   Vector training_times;
-  /// At most this many suggestions.
-  int max_suggestions = 6;
+  /// At most this many suggestions (a 7-joint arm with three friction terms on every joint
+  /// has 21 missing effects).
+  int max_suggestions = 32;
   /// Quantile bins for "where the error concentrates".
   int bins = 10;
   /// Where ProposeParameters searches a parameter, by "effect.parameter", overriding the
@@ -161,7 +162,8 @@ struct Suggestion {
   std::map<std::string, double> params;  ///< every parameter of the effect (as estimated)
   /// Calibration (docs/diagnosis.md): score_uncorrected is the gain with every row an
   /// independent sample; inflation = rows / effective_samples (>= 1) the factor by which
-  /// autocorrelation overstates it; p_value from the calibrated chi-square statistic,
+  /// autocorrelation overstates it (rows: those scored, the training rows included when
+  /// DiagnosisOptions::training_targets are given); p_value from the calibrated chi-square statistic,
   /// adjusted_p_value after the multiplicity correction.
   double score_uncorrected = 0;
   double inflation = 1;
