@@ -306,30 +306,13 @@ Diagnosis RunDiagnosis(const RobotModel& model, const Matrix& X, const Matrix& Y
 // ---- part A: simulated arms -----------------------------------------------------------------
 
 sim::Robot MakeRobot(const std::string& name) {
-  if (name == "puma560") return sim::Puma560();
-  if (name == "panda") return sim::Panda();
-  if (name == "three_link") return sim::ThreeLinkArm();
-  if (name == "random7") return sim::RandomRobot(7, 1);
-  throw std::invalid_argument("--robots: unknown robot '" + name +
-                              "' (expected puma560, panda, three_link, random7)");
+  try {
+    return sim::RobotByName(name);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--robots: ") + e.what());
+  }
 }
 
-// The chain with a point mass on its last link at c (that link's frame).
-RigidBodyChain WithPayload(const RigidBodyChain& chain, double mass, const Eigen::Vector3d& c) {
-  Vector pi = chain.parameters();
-  const int k = 10 * (chain.num_joints() - 1);
-  pi[k] += mass;
-  pi.segment(k + 1, 3) += mass * c;
-  const Eigen::Matrix3d I =
-      mass * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
-  pi[k + 4] += I(0, 0);
-  pi[k + 5] += I(0, 1);
-  pi[k + 6] += I(0, 2);
-  pi[k + 7] += I(1, 1);
-  pi[k + 8] += I(1, 2);
-  pi[k + 9] += I(2, 2);
-  return chain.WithParameters(pi);
-}
 
 // One hidden term: kind on joint (1-based) with magnitude (units of the joint's scale).
 struct Hidden {
@@ -383,7 +366,7 @@ SimLogs MakeSimLogs(const sim::Robot& arm, const SimCase& c, const Flags& f, std
   SimLogs logs;
   logs.urdf = std::make_shared<const RigidBodyChain>(sim::ToRigidBodyChain(arm));
   const sim::Robot robot =
-      c.payload ? sim::Robot::FromRigidBodyChain(WithPayload(*logs.urdf, kPayload, {0, 0, 0.05}))
+      c.payload ? sim::Robot::FromRigidBodyChain(logs.urdf->WithPayload(kPayload, {0, 0, 0.05}))
                 : arm;
   const double slow_len = f.train_seconds;
   const sim::Trajectory slow = sim::ViaPoints(N, slow_len, kDt, f.vias, 1.0, kQRange, seed,

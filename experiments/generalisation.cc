@@ -81,14 +81,11 @@ struct Flags {
 };
 
 sim::Robot MakeRobot(const std::string& name) {
-  if (name == "two_link") return sim::TwoLinkArm();
-  if (name == "three_link") return sim::ThreeLinkArm();
-  if (name == "puma560") return sim::Puma560();
-  if (name == "panda") return sim::Panda();
-  if (name == "random4") return sim::RandomRobot(4, 1);
-  if (name == "random7") return sim::RandomRobot(7, 1);
-  throw std::invalid_argument("--robots: unknown robot '" + name +
-                              "' (expected two_link, three_link, puma560, panda, random4, random7)");
+  try {
+    return sim::RobotByName(name);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--robots: ") + e.what());
+  }
 }
 
 // The chain of a simulated robot: with its armature (the truth), or as its URDF has it.
@@ -105,23 +102,6 @@ struct Case {
   std::shared_ptr<const RigidBodyChain> truth;  // the simulated chain (armature, payload)
 };
 
-// The chain with a point mass added to its last link, at `offset` in that link's frame.
-RigidBodyChain WithPayload(const RigidBodyChain& chain, double mass, const Eigen::Vector3d& c) {
-  Vector pi = chain.parameters();
-  const int k = 10 * (chain.num_joints() - 1);
-  pi[k] += mass;
-  pi.segment(k + 1, 3) += mass * c;
-  // Inertia about the link origin of a point mass: m (|c|^2 1 - c c^T); entries Ixx, Ixy, Ixz,
-  // Iyy, Iyz, Izz of the matrix.
-  const Eigen::Matrix3d I = mass * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
-  pi[k + 4] += I(0, 0);
-  pi[k + 5] += I(0, 1);
-  pi[k + 6] += I(0, 2);
-  pi[k + 7] += I(1, 1);
-  pi[k + 8] += I(1, 2);
-  pi[k + 9] += I(2, 2);
-  return chain.WithParameters(pi);
-}
 
 constexpr double kPayload = 2.0;  // kg
 
@@ -131,7 +111,7 @@ Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& 
   c.friction = kind == "friction";
   // "payload": 2 kg, 5 cm off the last link's origin along its z axis, unknown to the URDF.
   c.truth = std::make_shared<const RigidBodyChain>(
-      kind == "payload" ? WithPayload(ChainOf(dh_robot, true), kPayload, {0.0, 0.0, 0.05})
+      kind == "payload" ? ChainOf(dh_robot, true).WithPayload(kPayload, {0.0, 0.0, 0.05})
                         : ChainOf(dh_robot, true));
   const sim::Robot robot = kind == "payload" ? sim::Robot::FromRigidBodyChain(*c.truth) : dh_robot;
   const bool friction = c.friction;

@@ -126,22 +126,6 @@ Matrix States(const sim::Trajectory& tr) {
   return X;
 }
 
-// The chain with a point mass added to its last link at c (link frame).
-RigidBodyChain WithPayload(const RigidBodyChain& chain, double mass, const Eigen::Vector3d& c) {
-  Vector pi = chain.parameters();
-  const int k = 10 * (chain.num_joints() - 1);
-  pi[k] += mass;
-  pi.segment(k + 1, 3) += mass * c;
-  const Eigen::Matrix3d I =
-      mass * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
-  pi[k + 4] += I(0, 0);
-  pi[k + 5] += I(0, 1);
-  pi[k + 6] += I(0, 2);
-  pi[k + 7] += I(1, 1);
-  pi[k + 8] += I(1, 2);
-  pi[k + 9] += I(2, 2);
-  return chain.WithParameters(pi);
-}
 
 struct Log {
   std::string scenario;
@@ -192,7 +176,7 @@ Log MakeLog(const World& w, const sim::Trajectory& task, const std::string& scen
   sim::Dataset after = before;
   if (scenario == "payload") {
     const sim::Robot loaded = sim::Robot::FromRigidBodyChain(
-        WithPayload(sim::ToRigidBodyChain(w.arm), kPayload, {0.0, 0.0, kPayloadOffset}));
+        sim::ToRigidBodyChain(w.arm).WithPayload(kPayload, {0.0, 0.0, kPayloadOffset}));
     after = sim::Simulate(loaded, task);
   } else if (scenario != "drift") {
     throw std::invalid_argument("--scenarios: unknown scenario '" + scenario +

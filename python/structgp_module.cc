@@ -165,12 +165,7 @@ void BindRobotData(py::module_& m) {
         o.magnitude = magnitude;
         o.noise_std = noise;
         o.seed = seed;
-        sim::Robot r = robot == "two-link"     ? sim::TwoLinkArm()
-                       : robot == "three-link" ? sim::ThreeLinkArm()
-                       : robot == "puma560"    ? sim::Puma560()
-                                               : throw std::invalid_argument(
-                                                  "robot: expected two-link, three-link or "
-                                                  "puma560, got '" + robot + "'");
+        const sim::Robot r = sim::RobotByName(robot);
         sim::HiddenEffectScenario s;
         {
           py::gil_scoped_release release;

@@ -183,6 +183,35 @@ TEST(RigidBodyChainTest, WithParametersRoundTripsAndRebuildsTheSameDynamics) {
             1e-12 * chain.InverseDynamics(s.q, s.qd, s.qdd).norm());
 }
 
+// A payload added by its parameters equals the same point mass written into the URDF as a fixed
+// link on the last link (lumped by the URDF reader, an independent path).
+TEST(RigidBodyChainTest, WithPayloadEqualsAPointMassLinkInTheUrdf) {
+  const std::string xml = RandomUrdf(Random(7, false, false, 9));
+  const RigidBodyChain chain = RigidBodyChain::FromUrdfString(xml);
+  const Eigen::Vector3d c(0.03, -0.02, 0.05);
+  std::string loaded = xml;
+  loaded.insert(loaded.rfind("</robot>"),
+                "  <link name=\"payload\"><inertial><origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>"
+                "<mass value=\"2\"/><inertia ixx=\"0\" iyy=\"0\" izz=\"0\" ixy=\"0\" "
+                "ixz=\"0\" iyz=\"0\"/></inertial></link>\n  <joint name=\"payload_joint\" "
+                "type=\"fixed\"><parent link=\"link7\"/><child link=\"payload\"/><origin "
+                "xyz=\"0.03 -0.02 0.05\" rpy=\"0 0 0\"/></joint>\n");
+  const RigidBodyChain reference = RigidBodyChain::FromUrdfString(loaded);
+  ASSERT_EQ(reference.num_joints(), 7);
+  const RigidBodyChain with = chain.WithPayload(2.0, c);
+  std::mt19937_64 rng(6);
+  for (int trial = 0; trial < 10; ++trial) {
+    const State s = RandomState(7, rng);
+    EXPECT_LT(RelativeError(with.InverseDynamics(s.q, s.qd, s.qdd),
+                            reference.InverseDynamics(s.q, s.qd, s.qdd)),
+              1e-10);
+  }
+  EXPECT_GT(RelativeError(chain.InverseDynamics(Vector::Zero(7), Vector::Zero(7), Vector::Zero(7)),
+                          with.InverseDynamics(Vector::Zero(7), Vector::Zero(7), Vector::Zero(7))),
+            1e-3);
+  EXPECT_THROW(chain.WithPayload(-1.0, c), std::invalid_argument);
+}
+
 // The lumped chain against KDL's tree solver on the unlumped tree (fixed links and fixed
 // branches as their own segments).
 TEST(RigidBodyChainTest, LumpedFixedLinksGiveTheUnlumpedTreeDynamics) {

@@ -706,3 +706,29 @@ TEST(Dataset, RejectsMismatchedInput) {
 }  // namespace
 }  // namespace sim
 }  // namespace structgp
+
+namespace structgp {
+namespace {
+
+TEST(RobotByName, GivesEachRobotAndRefusesOthers) {
+  EXPECT_EQ(sim::RobotByName("two_link").name(), sim::TwoLinkArm().name());
+  EXPECT_EQ(sim::RobotByName("two-link").num_joints(), 2);
+  EXPECT_EQ(sim::RobotByName("three_link").num_joints(), 3);
+  EXPECT_EQ(sim::RobotByName("puma560").num_joints(), 6);
+  EXPECT_EQ(sim::RobotByName("panda").num_joints(), 7);
+  EXPECT_EQ(sim::RobotByName("panda").convention(), sim::DhConvention::kModified);
+  EXPECT_EQ(sim::RobotByName("random4").name(), sim::RandomRobot(4, 1).name());
+  for (const char* bad : {"random8", "random0", "puma", "", "random"}) {
+    try {
+      sim::RobotByName(bad);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("unknown robot '" + std::string(bad) + "'"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace structgp

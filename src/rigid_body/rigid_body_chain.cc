@@ -1,5 +1,7 @@
 #include "structgp/rigid_body/rigid_body_chain.h"
 
+#include <cmath>
+
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -203,6 +205,26 @@ std::vector<std::string> RigidBodyChain::parameter_names() const {
 }
 
 const Vector& RigidBodyChain::parameters() const { return model_->parameters; }
+
+RigidBodyChain RigidBodyChain::WithPayload(double mass, const Eigen::Vector3d& c) const {
+  if (!(mass >= 0.0) || !std::isfinite(mass) || !c.allFinite()) {
+    throw std::invalid_argument("RigidBodyChain::WithPayload: expected a finite mass >= 0 and a "
+                                "finite position");
+  }
+  Vector pi = parameters();
+  const int k = 10 * (num_joints() - 1);  // m, m c, then Ixx Ixy Ixz Iyy Iyz Izz of the link
+  pi[k] += mass;
+  pi.segment(k + 1, 3) += mass * c;
+  const Eigen::Matrix3d I =
+      mass * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
+  pi[k + 4] += I(0, 0);
+  pi[k + 5] += I(0, 1);
+  pi[k + 6] += I(0, 2);
+  pi[k + 7] += I(1, 1);
+  pi[k + 8] += I(1, 2);
+  pi[k + 9] += I(2, 2);
+  return WithParameters(pi);
+}
 
 RigidBodyChain RigidBodyChain::WithParameters(const Vector& pi) const {
   RequireSize("RigidBodyChain::WithParameters: parameters", pi.size(), num_parameters());

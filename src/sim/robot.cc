@@ -1,5 +1,6 @@
 #include "structgp/sim/robot.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -349,6 +350,21 @@ Robot Panda() {
         in[2], in[4], in[5];
   }
   return Robot("panda", std::move(links), Eigen::Matrix3d::Identity(), DhConvention::kModified);
+}
+
+Robot RobotByName(const std::string& name) {
+  std::string key = name;
+  std::replace(key.begin(), key.end(), '-', '_');
+  if (key == "two_link") return TwoLinkArm();
+  if (key == "three_link") return ThreeLinkArm();
+  if (key == "puma560") return Puma560();
+  if (key == "panda") return Panda();
+  if (key.size() == 7 && key.rfind("random", 0) == 0 && key[6] >= '1' && key[6] <= '7') {
+    return RandomRobot(key[6] - '0', 1);
+  }
+  throw std::invalid_argument("unknown robot '" + name +
+                              "' (expected two_link, three_link, puma560, panda, random1 .. "
+                              "random7)");
 }
 
 }  // namespace sim

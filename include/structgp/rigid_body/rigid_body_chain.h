@@ -103,6 +103,10 @@ class RigidBodyChain {
   /// The same kinematics with parameters pi (P entries, finite; physical consistency is not
   /// required: see CheckPhysicalConsistency). Throws std::invalid_argument otherwise.
   RigidBodyChain WithParameters(const Vector& pi) const;
+  /// The chain with a point mass (kg) at c (m, in the last link's frame) added to its last link:
+  /// a payload. Its inertial parameters add m, m c and m (|c|^2 1 - c c^T) to the link's.
+  /// Throws std::invalid_argument for a negative or non-finite mass or a non-finite c.
+  RigidBodyChain WithPayload(double mass, const Eigen::Vector3d& c) const;
 
   /// tau = M(q) qdd + C(q, qd) qd + G(q), N m, by KDL's recursive Newton-Euler solver (the
   /// armature included). Throws std::invalid_argument on a wrong size or a non-finite entry.

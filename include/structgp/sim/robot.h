@@ -185,6 +185,11 @@ Robot Puma560();
 /// along -z of the base. No armature (the Panda's is not published with these). Name "panda".
 Robot Panda();
 
+/// The simulator's robots by name: "two_link", "three_link", "puma560", "panda", and
+/// "random1" .. "random7" (RandomRobot(N, 1)); '-' may stand for '_' ("two-link"). Throws
+/// std::invalid_argument naming the robot and listing the names.
+Robot RobotByName(const std::string& name);
+
 }  // namespace sim
 }  // namespace structgp
 
