@@ -751,10 +751,11 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     if (!a.ok) return false;
     const double gain_white = 0.5 * a.statistic - a.occam;
     const double rms_before = std::sqrt(a.sse_before / m), rms_after = std::sqrt(a.sse_after / m);
-    const double res_before = std::sqrt(b.residual.col(j).squaredNorm() / m);
-    const double res_after = std::sqrt(a.residual_after.squaredNorm() / m);
+    // The effect's size on the diagnosed log (the training rows, when given, may not have it).
+    const double res_before = std::sqrt(b.residual.col(j).tail(m_log).squaredNorm() / m_log);
+    const double res_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
     const double noise = out.joints[static_cast<size_t>(j)].noise_std_estimate;
-    const double effect_rms = std::sqrt(a.change.squaredNorm() / m);
+    const double effect_rms = std::sqrt(a.change.tail(m_log).squaredNorm() / m_log);
     // Cheap bars first (the calibration below costs O(m K) per column).
     if (!(gain_white > options.min_log_evidence_gain)) return false;
     if (!(rms_after < (1.0 - options.min_relative_rms_gain) * rms_before)) return false;
@@ -919,8 +920,9 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       s.selection = "joint";
       s.rms_before = std::sqrt(best_add.sse_before / m);
       s.rms_after = std::sqrt(best_add.sse_after / m);
-      s.residual_rms_before = std::sqrt(rest.residual.col(joint - 1).squaredNorm() / m);
-      s.residual_rms_after = std::sqrt(best_add.residual_after.squaredNorm() / m);
+      s.residual_rms_before =
+          std::sqrt(rest.residual.col(joint - 1).tail(m_log).squaredNorm() / m_log);
+      s.residual_rms_after = std::sqrt(best_add.residual_after.tail(m_log).squaredNorm() / m_log);
       s.folds_improved = best_add.folds_improved;
       s.residual_before_rows = rest.residual.col(joint - 1).tail(m_log);
       s.residual_after_rows = best_add.residual_after.tail(m_log);

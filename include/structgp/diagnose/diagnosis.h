@@ -153,8 +153,8 @@ struct Suggestion {
   double score = 0;     ///< gain in log evidence of this joint's torque, nats
   double rms_before = 0;  ///< held-out RMS of the joint without the effect (blocked CV)
   double rms_after = 0;   ///< ... and with it
-  /// Residual RMS of the joint on all the data, the model refitted without the effect and
-  /// with it: what the effect would leave on this log. Compare it with the joint's
+  /// Residual RMS of the joint on the diagnosed log (every row of it), the model refitted
+  /// without the effect and with it: what the effect would leave on this log. Compare it with the joint's
   /// noise_std_estimate. (The held-out RMS above can be much larger on a log whose
   /// contiguous blocks visit different states, since each block is then an extrapolation.)
   double residual_rms_before = 0;
