@@ -591,7 +591,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     *G = s.gram.selfadjointView<Eigen::Lower>();
     *cross = std::move(s.cross);
   };
-  std::vector<Matrix> train_gram, train_cross;
   std::vector<std::vector<int>> gap_rows(fold_ranges.size());
   for (size_t f = 0; f < fold_ranges.size(); ++f) {
     const auto [begin, count] = fold_ranges[f];
@@ -743,6 +742,17 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
     return inflation;
   };
+  // What adding columns to the base b did to joint j (the suggestion's outcome): held-out
+  // error over the folds, the residual on the diagnosed log's rows before and after.
+  auto record_outcome = [&](const BaseFits& b, const Addition& a, int j, Suggestion* s) {
+    s->rms_before = std::sqrt(a.sse_before / m);
+    s->rms_after = std::sqrt(a.sse_after / m);
+    s->residual_rms_before = std::sqrt(b.residual.col(j).tail(m_log).squaredNorm() / m_log);
+    s->residual_rms_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
+    s->folds_improved = a.folds_improved;
+    s->residual_before_rows = b.residual.col(j).tail(m_log);
+    s->residual_after_rows = a.residual_after.tail(m_log);
+  };
   // Scores candidate ci against the base b; true when it passes every bar of this round.
   auto evaluate = [&](const BaseFits& b, size_t ci, int round, Suggestion* s) {
     const Candidate& c = candidates[ci];
@@ -781,16 +791,10 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->effect_rms = effect_rms;
     s->effect_to_noise = noise > 0 ? effect_rms / noise : HUGE_VAL;
     s->z = std::sqrt(statistic);
-    s->rms_before = rms_before;
-    s->rms_after = rms_after;
-    s->residual_rms_before = res_before;
-    s->residual_rms_after = res_after;
+    record_outcome(b, a, j, s);
     s->confirmation = confirmation;
     s->confirmation_folds = num_folds;
     s->confirmation_gap = gap;
-    s->folds_improved = a.folds_improved;
-    s->residual_before_rows = b.residual.col(j).tail(m_log);
-    s->residual_after_rows = a.residual_after.tail(m_log);
     s->params = MakeEffect(c.effect, c.params)->parameters();
     s->spec = c.spec;
     return s->score > options.min_log_evidence_gain && s->z >= options.min_effect_z &&
@@ -918,14 +922,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     for (int ci : best_set) {
       Suggestion s = eligible.at(ci);
       s.selection = "joint";
-      s.rms_before = std::sqrt(best_add.sse_before / m);
-      s.rms_after = std::sqrt(best_add.sse_after / m);
-      s.residual_rms_before =
-          std::sqrt(rest.residual.col(joint - 1).tail(m_log).squaredNorm() / m_log);
-      s.residual_rms_after = std::sqrt(best_add.residual_after.tail(m_log).squaredNorm() / m_log);
-      s.folds_improved = best_add.folds_improved;
-      s.residual_before_rows = rest.residual.col(joint - 1).tail(m_log);
-      s.residual_after_rows = best_add.residual_after.tail(m_log);
+      record_outcome(rest, best_add, joint - 1, &s);
       picks.emplace_back(ci, s);
     }
   }
