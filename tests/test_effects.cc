@@ -280,6 +280,43 @@ TEST(EffectProposal, CoggingFindsThePeriodOfTheRipple) {
   }
 }
 
+// A period is tried only where q sweeps two of them; and where a residual has a larger
+// periodogram peak of its own (a model far from the log), the evidence chooses among peaks.
+TEST(EffectProposal, CoggingPeriodsThatTheMotionResolvesChosenByEvidence) {
+  SyntheticJoint d = MakeJoint(3000, 13);
+  const double sweep = d.q.maxCoeff() - d.q.minCoeff();
+  for (int i = 0; i < d.q.size(); ++i) {
+    d.residual[i] += 0.3 * std::sin(kTwoPi * d.q[i] / 0.9) + 0.05 * std::sin(kTwoPi * d.q[i] / 0.23);
+  }
+  ResidualContext c(1, d.q, d.qd, d.qdd, d.t, d.residual);
+  c.search_ranges["period"] = ParameterRange{0.02, 3.0};
+  // No score: the largest peak (0.9 rad), and no period beyond half the sweep.
+  const auto largest = MakeEffectPrototype("cogging")->ProposeParameters(c);
+  ASSERT_EQ(largest.size(), 13u);
+  EXPECT_NEAR(largest[6].at("period"), 0.9, 0.9 * 0.01);
+  for (const auto& p : largest) EXPECT_LE(p.at("period"), 0.5 * sweep + 1e-12);
+  // A score that prefers the ripple at 0.23 rad: the proposals centre on it.
+  int calls = 0;
+  c.score = [&calls](const EffectParameters& p) {
+    ++calls;
+    return -std::abs(std::log(p.at("period") / 0.23));
+  };
+  const auto scored = MakeEffectPrototype("cogging")->ProposeParameters(c);
+  ASSERT_EQ(scored.size(), 13u);
+  // (its peak is shifted by the larger sinusoid's leakage; the grid around it holds 0.23)
+  EXPECT_NEAR(scored[6].at("period"), 0.23, 0.23 * 0.05);
+  double nearest = HUGE_VAL;
+  for (const auto& p : scored) nearest = std::min(nearest, std::abs(p.at("period") - 0.23));
+  EXPECT_LT(nearest, 0.23 * 0.0125);
+  EXPECT_GE(calls, 2);
+  EXPECT_LE(calls, 5);
+  // A joint that sweeps less than two of the shortest periods gets no cogging candidate.
+  Vector still = Vector::Constant(d.q.size(), 0.4) + 0.005 * d.q / sweep;
+  ResidualContext narrow(1, still, d.qd, d.qdd, d.t, d.residual);
+  narrow.search_ranges["period"] = ParameterRange{0.02, 3.0};
+  EXPECT_TRUE(MakeEffectPrototype("cogging")->ProposeParameters(narrow).empty());
+}
+
 TEST(EffectProposal, StribeckVelocitiesAreFractionsOfTheLargestSpeed) {
   const SyntheticJoint d = MakeJoint(500, 12);
   const double top = d.qd.cwiseAbs().maxCoeff();

@@ -207,10 +207,11 @@ class OffsetEffect : public Effect {
   std::unique_ptr<Effect> Clone() const override { return std::make_unique<OffsetEffect>(*this); }
 };
 
-// Period of a sinusoid in q that best explains r (least squares on sin, cos, 1): a log grid of
-// 400 periods in [lo, hi], then a ternary search around the best one.
-double EstimateCoggingPeriod(const ConstVectorRef& q, const ConstVectorRef& r, double lo,
-                             double hi) {
+// Periods in [lo, hi] at which a sinusoid in q explains most of the residual r (least squares
+// on sin, cos, 1): the largest local maxima of that periodogram on a log grid of 400 periods,
+// each refined by a ternary search around it, the best first.
+std::vector<double> EstimateCoggingPeriods(const ConstVectorRef& q, const ConstVectorRef& r,
+                                           double lo, double hi, int max_peaks) {
   const int n = static_cast<int>(q.size());
   auto explained = [&](double period) {
     Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
@@ -224,21 +225,31 @@ double EstimateCoggingPeriod(const ConstVectorRef& q, const ConstVectorRef& r, d
     G.diagonal().array() += 1e-9 * (G.trace() + 1.0);
     return b.dot(G.ldlt().solve(b));
   };
-  double best = lo, best_value = -1.0;
   const int grid = 400;
-  for (int g = 0; g < grid; ++g) {
-    const double p = lo * std::pow(hi / lo, g / (grid - 1.0));
-    const double v = explained(p);
-    if (v > best_value) best_value = v, best = p;
-  }
-  // Refine around the best grid point.
   const double step = std::pow(hi / lo, 1.0 / (grid - 1.0));
-  double a = best / step, c = best * step;
-  for (int it = 0; it < 40; ++it) {
-    const double m1 = a + (c - a) / 3, m2 = c - (c - a) / 3;
-    if (explained(m1) > explained(m2)) c = m2; else a = m1;
+  std::vector<double> period(grid), value(grid);
+  for (int g = 0; g < grid; ++g) {
+    period[g] = lo * std::pow(hi / lo, g / (grid - 1.0));
+    value[g] = explained(period[g]);
   }
-  return 0.5 * (a + c);
+  std::vector<int> peaks;
+  for (int g = 0; g < grid; ++g) {
+    const bool left = g == 0 || value[g] >= value[g - 1];
+    const bool right = g + 1 == grid || value[g] > value[g + 1];
+    if (left && right) peaks.push_back(g);
+  }
+  std::sort(peaks.begin(), peaks.end(), [&](int a, int b) { return value[a] > value[b]; });
+  if (static_cast<int>(peaks.size()) > max_peaks) peaks.resize(static_cast<size_t>(max_peaks));
+  std::vector<double> out;
+  for (int g : peaks) {
+    double a = std::max(lo, period[g] / step), c = std::min(hi, period[g] * step);
+    for (int it = 0; it < 40; ++it) {
+      const double m1 = a + (c - a) / 3, m2 = c - (c - a) / 3;
+      if (explained(m1) > explained(m2)) c = m2; else a = m1;
+    }
+    out.push_back(0.5 * (a + c));
+  }
+  return out;
 }
 
 class CoggingEffect : public Effect {
@@ -283,13 +294,31 @@ class CoggingEffect : public Effect {
     return text;
   }
   /// The period whose sinusoid in q best explains the residual (searched in
-  /// context.SearchRange("period")). The residual of a refit is distorted where the model
-  /// absorbed part of the ripple, so the estimate comes with alternatives on a +-15% grid
-  /// around it (within the search range), among which the diagnosis chooses by evidence.
+  /// context.SearchRange("period"), up to half the range q sweeps on the rows: a ripple needs
+  /// two periods to be told from a smooth function of q): of the five largest peaks of that periodogram, the one of
+  /// highest context.score (the largest when there is no score). The residual of a refit is
+  /// distorted where the model absorbed part of the ripple, so the estimate comes with
+  /// alternatives on a +-15% grid around it (within the search range), among which the
+  /// diagnosis chooses by evidence.
   std::vector<EffectParameters> ProposeParameters(const ResidualContext& c) const override {
     if (c.q.size() == 0 || c.residual.size() != c.q.size()) return {};
-    const ParameterRange range = c.SearchRange("period");
-    const double period = EstimateCoggingPeriod(c.q, c.residual, range.min, range.max);
+    ParameterRange range = c.SearchRange("period");
+    // A ripple is told from the model's smooth functions of q only where q sweeps at least
+    // two of its periods on these rows: longer periods are not tried.
+    range.max = std::min(range.max, 0.5 * (c.q.maxCoeff() - c.q.minCoeff()));
+    if (!(range.max > range.min)) return {};
+    // A residual much larger than the ripple (a model far from the data) has periodogram
+    // peaks of its own; the largest few are scored by evidence when the caller can score.
+    const std::vector<double> peaks =
+        EstimateCoggingPeriods(c.q, c.residual, range.min, range.max, c.score ? 5 : 1);
+    if (peaks.empty()) return {};
+    double period = peaks.front(), best = -HUGE_VAL;
+    if (c.score) {
+      for (double p : peaks) {
+        const double gain = c.score({{"period", p}});
+        if (gain > best) best = gain, period = p;
+      }
+    }
     std::vector<EffectParameters> out;
     // The grid stays inside the search range (an estimate at its edge gets a one-sided grid).
     for (int g = -6; g <= 6; ++g) {
