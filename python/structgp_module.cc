@@ -548,6 +548,7 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("z", &Suggestion::z)
       .def_readonly("confirmation", &Suggestion::confirmation)
       .def_readonly("folds_improved", &Suggestion::folds_improved)
+      .def_readonly("fold_rms_ratio", &Suggestion::fold_rms_ratio)
       .def_readonly("selection", &Suggestion::selection)
       .def_readonly("params", &Suggestion::params)
       .def_readonly("spec", &Suggestion::spec, "the text to add to the effects, e.g. 'coulomb@2'")

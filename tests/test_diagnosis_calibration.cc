@@ -9,6 +9,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "structgp/core/segments.h"
 #include "structgp/diagnose/autocorrelation.h"
@@ -154,6 +155,13 @@ TEST(Calibration, ConfirmsOnUnseenTrajectoriesOrGappedBlocks) {
   EXPECT_EQ(one.suggestions.front().confirmation, "blocks");
   EXPECT_GT(one.suggestions.front().confirmation_gap, 0);
   EXPECT_EQ(one.suggestions.front().folds_improved, 5);
+  // Every fold better: the mean fold ratio is below one, and what the findings say.
+  EXPECT_LT(one.suggestions.front().fold_rms_ratio, 1.0 - DiagnosisOptions{}.min_relative_rms_gain);
+  EXPECT_GT(one.suggestions.front().fold_rms_ratio, 0.0);
+  EXPECT_DOUBLE_EQ(
+      nlohmann::json::parse(ToJson(one))["suggestions"][0]["confirmation"]["fold_rms_ratio"]
+          .get<double>(),
+      one.suggestions.front().fold_rms_ratio);
 
   Vector t = scenario.test.t;
   const int m = static_cast<int>(t.size());

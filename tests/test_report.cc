@@ -195,6 +195,7 @@ void AddSuggestionRows(ReportData* data) {
   s.confirmation_folds = 5;
   s.confirmation_gap = 20;
   s.folds_improved = 4;
+  s.fold_rms_ratio = 0.31;
   s.selection = "joint";
   Suggestion& c = data->diagnosis.suggestions[1];
   c.residual_before_rows = ToVector(before2);
@@ -203,6 +204,7 @@ void AddSuggestionRows(ReportData* data) {
   c.confirmation_folds = 3;
   c.confirmation_gap = 0;
   c.folds_improved = 3;
+  c.fold_rms_ratio = 0.87;
 }
 
 // A coverage finding with distances of `points` points for `joints` joints: joint k's
@@ -667,12 +669,12 @@ TEST(Report, ShowsCalibrationAndConfirmationInTheSuggestionsTable) {
            "<td class=\"size\">7.5<br><span class=\"muted small\">z = 28.5<",
            "0.41 &rarr; 0.05<span class=\"chg better\">-88%</span>",
            "<td class=\"confirmation\">0.4 &rarr; 0.052<span class=\"chg better\">-87%</span>"
-           "<br><span class=\"muted small\">blocks: 4/5 folds better, gap 20 rows<",
+           "<br><span class=\"muted small\">blocks: 4/5 folds better (mean ratio 0.31), gap 20 rows<",
            "<td class=\"text\">joint</td>", "<code>coulomb@1</code>"}) {
     EXPECT_NE(row.find(part), std::string::npos) << "missing: " << part << "\nrow: " << row;
   }
   const std::string row2 = SuggestionRow(html, 2);
-  EXPECT_NE(row2.find("trajectories: 3/3 folds better, gap 0 rows"), std::string::npos) << row2;
+  EXPECT_NE(row2.find("trajectories: 3/3 folds better (mean ratio 0.87), gap 0 rows"), std::string::npos) << row2;
   EXPECT_NE(row2.find("<td class=\"text\">greedy</td>"), std::string::npos) << row2;
   EXPECT_EQ(row2.find("blocks"), std::string::npos) << row2;
 }

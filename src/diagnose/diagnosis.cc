@@ -661,6 +661,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     double occam = 0;      // 1/2 (log|Z| + log|Lambda_E| - k log sigma^2)
     double sse_before = 0, sse_after = 0;  // held-out, over the folds
     int folds_improved = 0;
+    double fold_ratio = 1;  // mean over the folds of the held-out RMS after / before
     Vector change;         // the change in the fitted torque of joint j on all data
     Vector residual_after;
     Vector we;
@@ -675,6 +676,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     double log_lambda_e = 0.0;
     for (int col : E) log_lambda_e += std::log(lambda[col]);
     a.occam = 0.5 * (log_det_z + log_lambda_e - static_cast<double>(E.size()) * std::log(s2n));
+    double ratio_sum = 0.0;
     for (int f = 0; f < num_folds; ++f) {
       const auto [begin, count] = fold_ranges[f];
       const BaseFit& base = b.fits[f + 1];
@@ -690,7 +692,9 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       a.sse_before += sb;
       a.sse_after += sa;
       if (sa < sb) ++a.folds_improved;
+      ratio_sum += sb > 0 ? std::sqrt(sa / sb) : 1.0;
     }
+    a.fold_ratio = ratio_sum / std::max(1, num_folds);
     const Vector delta = b.fits[0].llt.matrixU().solve(Vector(aug.V * a.we));
     a.change = F(Eigen::all, E) * a.we - F(Eigen::all, b.cols) * delta;
     a.residual_after = b.residual.col(j) - a.change;
@@ -750,6 +754,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->residual_rms_before = std::sqrt(b.residual.col(j).tail(m_log).squaredNorm() / m_log);
     s->residual_rms_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
     s->folds_improved = a.folds_improved;
+    s->fold_rms_ratio = a.fold_ratio;
     s->residual_before_rows = b.residual.col(j).tail(m_log);
     s->residual_after_rows = a.residual_after.tail(m_log);
   };
@@ -768,9 +773,11 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     const double effect_rms = std::sqrt(a.change.tail(m_log).squaredNorm() / m_log);
     // Cheap bars first (the calibration below costs O(m K) per column).
     if (!(gain_white > options.min_log_evidence_gain)) return false;
-    if (!(rms_after < (1.0 - options.min_relative_rms_gain) * rms_before)) return false;
+    // Held out, each fold weighs the same: a fold that the model extrapolates to badly (its
+    // error far above the others') does not drown what the effect does in the others.
+    if (!(a.fold_ratio < 1.0 - options.min_relative_rms_gain)) return false;
     // The effect's size on this log; or, when a refit absorbs it in sample, out of sample.
-    const bool large_held_out = rms_after <= (1.0 - options.held_out_fall_alone) * rms_before;
+    const bool large_held_out = a.fold_ratio <= 1.0 - options.held_out_fall_alone;
     if (!large_held_out) {
       if (!(res_after <= (1.0 - options.min_residual_fall) * res_before)) return false;
       if (!(effect_rms >= options.min_effect_to_noise * noise)) return false;
@@ -900,7 +907,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       }
       if (effects.size() != set.size()) continue;
       const Addition a = add_columns(rest, columns_of(set), joint - 1);
-      if (!a.ok || a.sse_after > greedy_add.sse_after) continue;
+      if (!a.ok || a.fold_ratio > greedy_add.fold_ratio) continue;
       const double gain = set_gain(set, a);
       if (gain > best_gain) {
         best_set = set;
@@ -1190,6 +1197,7 @@ std::string ToJson(const Diagnosis& d) {
                           {"folds", s.confirmation_folds},
                           {"gap", s.confirmation_gap},
                           {"folds_improved", s.folds_improved},
+                          {"fold_rms_ratio", s.fold_rms_ratio},
                           {"rms_before", s.rms_before},
                           {"rms_after", s.rms_after}};
     js["selection"] = s.selection;

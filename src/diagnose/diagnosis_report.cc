@@ -93,12 +93,12 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
     os << Format(
         "joint %d: missing %s (evidence %+.0f nats, %.0f without the autocorrelation "
         "correction; adjusted p %s; %.1f times the noise%s): residual RMS %.3g -> %.3g, "
-        "held-out RMS (%s; better in %d) %.3g -> %.3g; add with --effects %s\n",
+        "held-out RMS (%s; better in %d, mean fold ratio %.2f) %.3g -> %.3g; add with --effects %s\n",
         s.joint, DescribeEffect(s).c_str(), s.score, s.score_uncorrected,
         (s.adjusted_p_value > 0 ? Format("%.2g", s.adjusted_p_value) : std::string("< 1e-300")).c_str(),
         s.effect_to_noise, s.selection == "joint" ? "; chosen with the joint's other friction" : "",
         s.residual_rms_before, s.residual_rms_after, unseen.c_str(), s.folds_improved,
-        s.rms_before, s.rms_after,
+        s.fold_rms_ratio, s.rms_before, s.rms_after,
         shell_word((existing.empty() ? "" : existing + ",") + s.spec).c_str());
   }
   return os.str();

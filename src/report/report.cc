@@ -682,7 +682,8 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
     std::string confirmation;
     if (!s.confirmation.empty()) {
       confirmation = Escape(s.confirmation) + ": " + std::to_string(s.folds_improved) + "/" +
-                     std::to_string(s.confirmation_folds) + " folds better, gap " +
+                     std::to_string(s.confirmation_folds) + " folds better (mean ratio " +
+                     FormatFixed(s.fold_rms_ratio, 2) + "), gap " +
                      std::to_string(s.confirmation_gap) + " rows";
     }
     *html += "<tr><td>" + std::to_string(i + 1) + "</td><td class=\"text\"><b>" +

@@ -58,7 +58,8 @@ struct DiagnosisOptions {
   /// Minimum gain in log evidence of the joint's torque, nats (about e^10 : 1 odds), after
   /// the autocorrelation correction.
   double min_log_evidence_gain = 10.0;
-  /// Minimum relative fall of the held-out RMS of the joint (the confirmation on unseen data).
+  /// Minimum relative fall of the held-out RMS of the joint (the confirmation on unseen data),
+  /// as the mean over the folds of each fold's RMS ratio (Suggestion::fold_rms_ratio).
   double min_relative_rms_gain = 0.02;
   /// Family-wise error rate (Holm) or false discovery rate (Benjamini-Hochberg) over every
   /// candidate on every joint.
@@ -182,6 +183,12 @@ struct Suggestion {
   int confirmation_folds = 0;
   int confirmation_gap = 0;
   int folds_improved = 0;
+  /// Mean over the folds of the held-out RMS with the effect over that without it: the number
+  /// the held-out bars (min_relative_rms_gain, held_out_fall_alone) apply to. Each fold weighs
+  /// the same, so that a fold the model extrapolates to badly (on a log whose blocks visit
+  /// different states) does not drown what the effect does in the others; rms_before and
+  /// rms_after pool the folds.
+  double fold_rms_ratio = 1;
   /// "greedy" (chosen one at a time) or "joint" (chosen together with the joint's other
   /// friction-like effects, because the set is better on unseen data than the greedy choice).
   std::string selection = "greedy";
