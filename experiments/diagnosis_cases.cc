@@ -66,7 +66,8 @@
 // the effect named on its joint (cogging: period within 10% of P). False alarms: suggestions
 // beyond those of the uninjected log and the found one. An effect that the model already
 // spans (coulomb and offset under +fri: Effect::spanned_by) is not a candidate of the
-// diagnosis; its rows are marked "spanned" and measure false alarms only.
+// diagnosis on the log alone (--log-only); its rows are marked "spanned" and measure false
+// alarms only. With the training data it is, on the log's rows (a change in this log).
 //
 // Only the fields of Diagnosis that every version has (status, message, suggestions: effect,
 // joint, params, spec) are read by name; any other top-level field of its JSON (ToJson) is
@@ -797,7 +798,9 @@ RealResult RunReal(const Flags& f) {
     const double t0 = t.size() ? t[0] : 0.0;
     const double T = t.size() ? std::max(t[t.size() - 1] - t0, 1e-9) : 1.0;
     for (const std::string& effect : f.injections) {
-      const bool spanned = SpannedBy(spec, effect);
+      // With the training data, an effect the model spans is still a candidate on the log
+      // alone (Suggestion::scope "log"): a change of it in this log.
+      const bool spanned = !f.with_training && SpannedBy(spec, effect);
       const std::vector<double> periods =
           effect == "cogging" ? f.periods : std::vector<double>{0.0};
       for (double size : f.sizes) {

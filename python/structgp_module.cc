@@ -550,6 +550,7 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("folds_improved", &Suggestion::folds_improved)
       .def_readonly("fold_rms_ratio", &Suggestion::fold_rms_ratio)
       .def_readonly("selection", &Suggestion::selection)
+      .def_readonly("scope", &Suggestion::scope)
       .def_readonly("params", &Suggestion::params)
       .def_readonly("spec", &Suggestion::spec, "the text to add to the effects, e.g. 'coulomb@2'")
       .def_property_readonly("description", &DescribeEffect)

@@ -214,6 +214,57 @@ TEST(Calibration, AModelThatDoesNotExtrapolateIsACoverageFinding) {
   for (const JointFinding& f : own.joints) EXPECT_LT(f.max_distance, 0.5);
 }
 
+// With the training data given, an effect is tried on every row and on the diagnosed log
+// alone. A Coulomb step the robot has in both logs is named on every row (scope "all"); one that
+// only the diagnosed log has (the robot changed after training) is named on the log alone
+// (scope "log"): scored there, it is not diluted by the training rows that do not have it.
+TEST(Calibration, AnEffectOnlyTheDiagnosedLogHasIsNamedOnTheLogAlone) {
+  auto both = Clean(HiddenEffect::kCoulomb, 2, 0.1, 20.0);
+  auto only_log = Clean(HiddenEffect::kNone, 2, 0.0, 20.0);
+  only_log.test.Y += both.hidden_test;
+  for (auto* scenario : {&both, &only_log}) {
+    sim::Dataset train = scenario->train, test = scenario->test;
+    AddWhiteNoise(0.01, 11, &train);
+    AddWhiteNoise(0.01, 12, &test);
+    const RobotModel model = Fit(ParseModelSpec("pol"), train);
+    DiagnosisOptions options;
+    options.training_inputs = train.X;
+    options.training_targets = train.Y;
+    options.training_times = train.t;
+    const Diagnosis d = Diagnose(model, test.X, test.Y, test.t, options);
+    std::printf("%s:\n%s", scenario == &both ? "in both" : "in the log only", ToJson(d).c_str());
+    ASSERT_FALSE(d.suggestions.empty());
+    const Suggestion& s = d.suggestions.front();
+    EXPECT_EQ(s.joint, 2) << s.spec;
+    EXPECT_TRUE(s.effect == "coulomb" || s.effect == "stribeck") << s.spec;
+    EXPECT_EQ(s.scope, scenario == &both ? "all" : "log") << s.spec;
+    EXPECT_EQ(nlohmann::json::parse(ToJson(d))["suggestions"][0]["scope"].get<std::string>(),
+              s.scope);
+    // Without training data there is one scope.
+    const Diagnosis alone = Diagnose(model, test.X, test.Y, test.t);
+    for (const Suggestion& a : alone.suggestions) EXPECT_EQ(a.scope, "all") << a.spec;
+  }
+  // A model with Coulomb friction on every joint (+fri) cannot be missing it on every row,
+  // but the step that only the log has is a change of it there: named Coulomb on the log alone.
+  sim::Dataset train = only_log.train, test = only_log.test;
+  AddWhiteNoise(0.01, 13, &train);
+  AddWhiteNoise(0.01, 14, &test);
+  const RobotModel with_friction = Fit(ParseModelSpec("pol+fri"), train);
+  DiagnosisOptions options;
+  options.training_inputs = train.X;
+  options.training_targets = train.Y;
+  options.training_times = train.t;
+  const Diagnosis d = Diagnose(with_friction, test.X, test.Y, test.t, options);
+  std::printf("pol+fri, in the log only:\n%s", ToJson(d).c_str());
+  ASSERT_FALSE(d.suggestions.empty());
+  EXPECT_EQ(d.suggestions.front().joint, 2);
+  EXPECT_EQ(d.suggestions.front().effect, "coulomb");
+  EXPECT_EQ(d.suggestions.front().scope, "log");
+  for (const Suggestion& s : d.suggestions) {
+    EXPECT_FALSE(s.effect == "coulomb" && s.scope == "all") << s.spec;  // spanned on every row
+  }
+}
+
 // Coulomb + viscous + Stribeck on one joint: the suggestions on that joint, added to the
 // model, predict a new fast log about as well as the true effects do.
 TEST(Calibration, CorrelatedFrictionEffectsTogetherMatchTheTrueOnes) {

@@ -38,6 +38,7 @@ struct Candidate {
   EffectParameters params;
   Index cols;      // columns in the design matrix F
   std::string spec;
+  std::string scope = "all";  // Suggestion::scope
   bool alive = true;
 };
 
@@ -185,7 +186,9 @@ class EvidenceScorer {
       : base_map_(std::move(base_map)), Phi_(Phi), Y_(Y), Xt_(Xt), hyper_(hyper),
         broad_variance_(broad_prior_std * broad_prior_std) {}
 
-  double Score(const std::string& name, int joint, const EffectParameters& params) {
+  // The effect on rows from_row.. only (its columns zero before: Suggestion::scope "log").
+  double Score(const std::string& name, int joint, const EffectParameters& params,
+               int from_row = 0) {
     std::shared_ptr<const Effect> effect;
     try {
       effect = MakeEffect(name, params);
@@ -204,6 +207,7 @@ class EvidenceScorer {
     EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
     Matrix E;
     map.EvaluateRows(Xt_, &E);
+    E.topRows(from_row).setZero();
     const int D = static_cast<int>(Phi_.cols()), k = static_cast<int>(E.cols());
     Matrix G(D + k, D + k), cross(D + k, N);
     G.topLeftCorner(D, D) = gram_;
@@ -499,7 +503,9 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   std::vector<Candidate> candidates;
   std::vector<Matrix> blocks;  // candidate columns, in order
   int next_col = base_map->dim();
-  auto add_candidate = [&](const std::string& name, int joint, EffectParameters params) {
+  // scope "log": the effect on the diagnosed log's rows only (columns zero on the training rows).
+  auto add_candidate = [&](const std::string& name, int joint, EffectParameters params,
+                           const std::string& scope) {
     std::shared_ptr<const Effect> effect;
     try {
       effect = MakeEffect(name, params);
@@ -510,10 +516,12 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     EffectFeatureMap map(N, effect, {joint}, /*with_time=*/true);
     Matrix E;
     map.EvaluateRows(Xt, &E);
+    if (scope == "log") E.topRows(log_begin).setZero();
     Candidate c;
     c.effect = name;
     c.joint = joint;
     c.params = params;
+    c.scope = scope;
     EffectSpec es{name, {joint}, params};
     c.spec = ToString(es);
     for (int k = 0; k < E.cols(); ++k) c.cols.push_back(next_col++);
@@ -536,17 +544,34 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
     for (int j = 1; j <= N; ++j) {
       if (only_joint > 0 && j != only_joint) continue;
-      if (model_has(*prototype, j)) continue;
       // The effect proposes its parameters from what a refit of the model on these data
       // cannot explain (the model's own residual also carries its extrapolation error).
-      ResidualContext context(j, X.col(j - 1), X.col(N + j - 1), X.col(2 * N + j - 1), t,
-                              refit_residual.col(j - 1));
-      context.search_ranges = search;
-      context.score = [&scorer, name, j](const EffectParameters& p) {
-        return scorer.Score(name, j, p);
-      };
-      for (EffectParameters& params : prototype->ProposeParameters(context)) {
-        add_candidate(name, j, std::move(params));
+      if (!model_has(*prototype, j)) {
+        ResidualContext context(j, X.col(j - 1), X.col(N + j - 1), X.col(2 * N + j - 1), t,
+                                refit_residual.col(j - 1));
+        context.search_ranges = search;
+        context.score = [&scorer, name, j](const EffectParameters& p) {
+          return scorer.Score(name, j, p);
+        };
+        for (EffectParameters& params : prototype->ProposeParameters(context)) {
+          add_candidate(name, j, std::move(params), "all");
+        }
+      }
+      // With the training data, on the diagnosed log alone, from the log's rows: what the
+      // robot does now and did not then (an effect the model has on every row included: its
+      // change in this log is another hypothesis), not diluted by the rows without it.
+      if (log_begin > 0) {
+        ResidualContext context(j, X.col(j - 1).tail(m_log), X.col(N + j - 1).tail(m_log),
+                                X.col(2 * N + j - 1).tail(m_log),
+                                t.size() ? t.tail(m_log) : t.head(0),
+                                refit_residual.col(j - 1).tail(m_log));
+        context.search_ranges = search;
+        context.score = [&scorer, name, j, log_begin](const EffectParameters& p) {
+          return scorer.Score(name, j, p, log_begin);
+        };
+        for (EffectParameters& params : prototype->ProposeParameters(context)) {
+          add_candidate(name, j, std::move(params), "log");
+        }
       }
     }
   }
@@ -765,7 +790,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     const Addition a = add_columns(b, c.cols, j);
     if (!a.ok) return false;
     const double gain_white = 0.5 * a.statistic - a.occam;
-    const double rms_before = std::sqrt(a.sse_before / m), rms_after = std::sqrt(a.sse_after / m);
     // The effect's size on the diagnosed log (the training rows, when given, may not have it).
     const double res_before = std::sqrt(b.residual.col(j).tail(m_log).squaredNorm() / m_log);
     const double res_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
@@ -804,6 +828,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->confirmation_gap = gap;
     s->params = MakeEffect(c.effect, c.params)->parameters();
     s->spec = c.spec;
+    s->scope = c.scope;
     return s->score > options.min_log_evidence_gain && s->z >= options.min_effect_z &&
            p <= threshold(round);
   };
@@ -1201,6 +1226,7 @@ std::string ToJson(const Diagnosis& d) {
                           {"rms_before", s.rms_before},
                           {"rms_after", s.rms_after}};
     js["selection"] = s.selection;
+    js["scope"] = s.scope;
     js["params"] = nlohmann::ordered_json::object();
     for (const auto& [k, v] : s.params) js["params"][k] = v;
     js["spec"] = s.spec;

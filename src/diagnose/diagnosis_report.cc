@@ -91,10 +91,11 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
             ? Format("leave one trajectory out, %d folds", s.confirmation_folds)
             : Format("%d contiguous blocks, gap %d rows", s.confirmation_folds, s.confirmation_gap);
     os << Format(
-        "joint %d: missing %s (evidence %+.0f nats, %.0f without the autocorrelation "
+        "joint %d: missing %s%s (evidence %+.0f nats, %.0f without the autocorrelation "
         "correction; adjusted p %s; %.1f times the noise%s): residual RMS %.3g -> %.3g, "
         "held-out RMS (%s; better in %d, mean fold ratio %.2f) %.3g -> %.3g; add with --effects %s\n",
-        s.joint, DescribeEffect(s).c_str(), s.score, s.score_uncorrected,
+        s.joint, DescribeEffect(s).c_str(),
+        s.scope == "log" ? ", in this log only (not in the training data: retrain with this log)" : "", s.score, s.score_uncorrected,
         (s.adjusted_p_value > 0 ? Format("%.2g", s.adjusted_p_value) : std::string("< 1e-300")).c_str(),
         s.effect_to_noise, s.selection == "joint" ? "; chosen with the joint's other friction" : "",
         s.residual_rms_before, s.residual_rms_after, unseen.c_str(), s.folds_improved,

@@ -704,7 +704,9 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
              " &rarr; " + FormatNumber(s.rms_after, kTableDigits) +
              ChangeBadge(s.rms_before, s.rms_after) +
              (confirmation.empty() ? std::string() : below(confirmation)) + "</td>";
-    *html += "<td class=\"text\">" + Escape(s.selection) + "</td><td class=\"text\">" +
+    *html += "<td class=\"text\">" + Escape(s.selection) +
+             (s.scope == "log" ? below("in this log only") : std::string()) +
+             "</td><td class=\"text\">" +
              Parameters(s.params) + "</td><td class=\"text\"><code>" + Escape(s.spec) +
              "</code></td></tr>\n";
   }

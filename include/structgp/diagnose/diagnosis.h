@@ -192,6 +192,11 @@ struct Suggestion {
   /// "greedy" (chosen one at a time) or "joint" (chosen together with the joint's other
   /// friction-like effects, because the set is better on unseen data than the greedy choice).
   std::string selection = "greedy";
+  /// "all": the effect is on every row scored (the training data too, when given); "log": on
+  /// the diagnosed log alone, with the training data given: the log has it and the training
+  /// data do not (the robot changed since, or the training motion did not excite it). Both
+  /// are tried when training data are given, each counted as a test.
+  std::string scope = "all";
   /// The joint's residual on every row of the log, the model refitted there without and with
   /// the effect (with the suggestions chosen before it in both): what the report plots against
   /// q and qd. Not written to FINDINGS.json.
