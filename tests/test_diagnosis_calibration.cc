@@ -102,6 +102,15 @@ void AddWhiteNoise(double std, std::uint64_t seed, sim::Dataset* d) {
   for (Eigen::Index i = 0; i < d->Y.size(); ++i) d->Y.data()[i] += n(rng);
 }
 
+// The diagnosis given the model's training data.
+DiagnosisOptions WithTraining(const sim::Dataset& train) {
+  DiagnosisOptions options;
+  options.training_inputs = train.X;
+  options.training_targets = train.Y;
+  options.training_times = train.t;
+  return options;
+}
+
 // A log whose noise is AR(1) with phi = 0.99 (m / 199 effective samples). Without a missing
 // effect nothing is suggested (scored as white noise, the wander passes for a drift of 86 nats;
 // the calibration and the held-out check both refuse it), with or without the training data.
@@ -118,10 +127,7 @@ TEST(Calibration, AutocorrelatedNoise) {
       scenario.test.Y.col(j) += Ar1(static_cast<int>(scenario.test.Y.rows()), 0.99, 0.03, &rng);
     }
     const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
-    DiagnosisOptions with_training;
-    with_training.training_inputs = scenario.train.X;
-    with_training.training_targets = scenario.train.Y;
-    with_training.training_times = scenario.train.t;
+    const DiagnosisOptions with_training = WithTraining(scenario.train);
     const Diagnosis d =
         Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, with_training);
     std::printf("%s:\n%s", sim::ToString(effect), ToJson(d).c_str());
@@ -187,10 +193,7 @@ TEST(Calibration, AModelThatDoesNotExtrapolateIsACoverageFinding) {
   AddWhiteNoise(0.01, 5, &scenario.train);
   AddWhiteNoise(0.01, 6, &scenario.test);
   const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
-  DiagnosisOptions options;
-  options.training_inputs = scenario.train.X;
-  options.training_targets = scenario.train.Y;
-  options.training_times = scenario.train.t;
+  const DiagnosisOptions options = WithTraining(scenario.train);
   const Diagnosis d = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, options);
   std::printf("%s", ToJson(d).c_str());
   EXPECT_TRUE(d.suggestions.empty());
@@ -227,10 +230,7 @@ TEST(Calibration, AnEffectOnlyTheDiagnosedLogHasIsNamedOnTheLogAlone) {
     AddWhiteNoise(0.01, 11, &train);
     AddWhiteNoise(0.01, 12, &test);
     const RobotModel model = Fit(ParseModelSpec("pol"), train);
-    DiagnosisOptions options;
-    options.training_inputs = train.X;
-    options.training_targets = train.Y;
-    options.training_times = train.t;
+    const DiagnosisOptions options = WithTraining(train);
     const Diagnosis d = Diagnose(model, test.X, test.Y, test.t, options);
     std::printf("%s:\n%s", scenario == &both ? "in both" : "in the log only", ToJson(d).c_str());
     ASSERT_FALSE(d.suggestions.empty());
@@ -250,10 +250,7 @@ TEST(Calibration, AnEffectOnlyTheDiagnosedLogHasIsNamedOnTheLogAlone) {
   AddWhiteNoise(0.01, 13, &train);
   AddWhiteNoise(0.01, 14, &test);
   const RobotModel with_friction = Fit(ParseModelSpec("pol+fri"), train);
-  DiagnosisOptions options;
-  options.training_inputs = train.X;
-  options.training_targets = train.Y;
-  options.training_times = train.t;
+  const DiagnosisOptions options = WithTraining(train);
   const Diagnosis d = Diagnose(with_friction, test.X, test.Y, test.t, options);
   std::printf("pol+fri, in the log only:\n%s", ToJson(d).c_str());
   ASSERT_FALSE(d.suggestions.empty());
@@ -281,10 +278,7 @@ TEST(Calibration, CorrelatedFrictionEffectsTogetherMatchTheTrueOnes) {
   AddWhiteNoise(0.01, 8, &diagnosed);
   const ModelSpec base = ParseModelSpec("pol");
   const RobotModel model = Fit(base, scenario.train);
-  DiagnosisOptions options;
-  options.training_inputs = scenario.train.X;
-  options.training_targets = scenario.train.Y;
-  options.training_times = scenario.train.t;
+  const DiagnosisOptions options = WithTraining(scenario.train);
   const Diagnosis d = Diagnose(model, diagnosed.X, diagnosed.Y, diagnosed.t, options);
   std::printf("%s", ToJson(d).c_str());
   ASSERT_FALSE(d.suggestions.empty());
