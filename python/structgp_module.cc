@@ -555,6 +555,14 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("spec", &Suggestion::spec, "the text to add to the effects, e.g. 'coulomb@2'")
       .def_property_readonly("description", &DescribeEffect)
       .def("__repr__", [](const Suggestion& s) { return "Suggestion('" + s.spec + "', score " + std::to_string(s.score) + ")"; });
+  py::class_<Refusal>(m, "Refusal", "A candidate effect that was not suggested, and why.")
+      .def_readonly("candidate", &Refusal::candidate, "its numbers as far as the scoring went")
+      .def_readonly("bar", &Refusal::bar, "the first bar it failed, e.g. 'held_out'")
+      .def_readonly("reason", &Refusal::reason)
+      .def_readonly("calibrated", &Refusal::calibrated)
+      .def_readonly("after_suggestions", &Refusal::after_suggestions,
+                    "scored with the suggestions chosen before it (they explain it)")
+      .def("__repr__", [](const Refusal& r) { return "Refusal('" + r.candidate.spec + "', " + r.reason + ")"; });
   py::class_<DiagnosisResult>(m, "Diagnosis",
                               "Where a model fails on data and which effects it misses (the "
                               "content of the CLI's FINDINGS.json).")
@@ -562,6 +570,8 @@ void BindDiagnosis(py::module_& m) {
       .def_property_readonly("message", [](const DiagnosisResult& d) { return d.diagnosis.message; })
       .def_property_readonly("joints", [](const DiagnosisResult& d) { return d.diagnosis.joints; })
       .def_property_readonly("suggestions", [](const DiagnosisResult& d) { return d.diagnosis.suggestions; })
+      .def_property_readonly("refused", [](const DiagnosisResult& d) { return d.diagnosis.refused; },
+                             "the closest candidates not suggested, with the bar each failed")
       .def_property_readonly("num_samples", [](const DiagnosisResult& d) { return d.diagnosis.num_samples; })
       .def_property_readonly("model", [](const DiagnosisResult& d) { return d.diagnosis.model; })
       .def_property_readonly("features", [](const DiagnosisResult& d) { return d.diagnosis.features; })

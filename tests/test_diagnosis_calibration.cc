@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 #include "structgp/core/segments.h"
 #include "structgp/diagnose/autocorrelation.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_report.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/sim/hidden_effect.h"
@@ -146,6 +148,112 @@ TEST(Calibration, AutocorrelatedNoise) {
     EXPECT_LT(s.adjusted_p_value, 0.01);
     EXPECT_LE(s.score, s.score_uncorrected);
   }
+}
+
+// What was not suggested, and why. On the AR(1) log of the test above the wander passes for a
+// drift when scored as white noise; the diagnosis suggests nothing, and says which bar refused
+// the drift and the other close candidates, with numbers that show it.
+TEST(Calibration, RefusedCandidatesNameTheBarThatStoppedThem) {
+  auto scenario = Clean(HiddenEffect::kNone, 2, 0.0, 30.0);
+  AddWhiteNoise(0.01, 1, &scenario.train);
+  std::mt19937_64 rng(2);
+  for (int j = 0; j < scenario.test.Y.cols(); ++j) {
+    scenario.test.Y.col(j) += Ar1(static_cast<int>(scenario.test.Y.rows()), 0.99, 0.03, &rng);
+  }
+  const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
+  const DiagnosisOptions options = WithTraining(scenario.train);
+  const Diagnosis d = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, options);
+  EXPECT_TRUE(d.suggestions.empty());
+  ASSERT_FALSE(d.refused.empty());
+  EXPECT_LE(static_cast<int>(d.refused.size()), options.max_refused);
+  const std::set<std::string> bars = {"evidence",    "held_out",
+                                      "residual_fall", "effect_size",
+                                      "calibrated_evidence", "z",
+                                      "significance"};
+  bool drift_passed_white = false;
+  for (size_t i = 0; i < d.refused.size(); ++i) {
+    const Refusal& r = d.refused[i];
+    const Suggestion& c = r.candidate;
+    SCOPED_TRACE(c.spec + ": " + r.reason);
+    EXPECT_TRUE(bars.count(r.bar));
+    EXPECT_FALSE(r.reason.empty());
+    EXPECT_EQ(ParseEffectList(c.spec).size(), 1u);
+    if (i > 0 && d.refused[i - 1].after_suggestions == r.after_suggestions) {
+      EXPECT_LE(c.score_uncorrected, d.refused[i - 1].candidate.score_uncorrected);
+    }
+    if (i > 0) {
+      EXPECT_FALSE(r.after_suggestions && !d.refused[i - 1].after_suggestions);
+    }
+    // The numbers show the bar: every bar before it passed, this one did not.
+    if (r.bar == "evidence") {
+      EXPECT_LE(c.score_uncorrected, options.min_log_evidence_gain);
+      continue;
+    }
+    EXPECT_GT(c.score_uncorrected, options.min_log_evidence_gain);
+    if (c.effect == "drift") drift_passed_white = true;
+    if (r.bar == "held_out") {
+      EXPECT_GE(c.fold_rms_ratio, 1.0 - options.min_relative_rms_gain);
+      EXPECT_FALSE(r.calibrated);
+      continue;
+    }
+    EXPECT_LT(c.fold_rms_ratio, 1.0 - options.min_relative_rms_gain);
+    if (r.bar == "residual_fall") {
+      EXPECT_GT(c.residual_rms_after, (1.0 - options.min_residual_fall) * c.residual_rms_before);
+    } else if (r.bar == "effect_size") {
+      EXPECT_LT(c.effect_to_noise, options.min_effect_to_noise);
+    } else {
+      ASSERT_TRUE(r.calibrated);
+      EXPECT_GE(c.inflation, 1.0);
+      if (r.bar == "calibrated_evidence") {
+        EXPECT_LE(c.score, options.min_log_evidence_gain);
+      }
+      if (r.bar == "z") {
+        EXPECT_LT(c.z, options.min_effect_z);
+      }
+    }
+  }
+  // The wander: a drift that passes the white-noise evidence bar, refused by a later one.
+  EXPECT_TRUE(drift_passed_white);
+  // FINDINGS.json carries them, without the calibration numbers a cheap bar did not reach.
+  const nlohmann::json j = nlohmann::json::parse(ToJson(d));
+  ASSERT_EQ(j["refused"].size(), d.refused.size());
+  for (size_t i = 0; i < d.refused.size(); ++i) {
+    EXPECT_EQ(j["refused"][i]["refused_by"].get<std::string>(), d.refused[i].bar);
+    EXPECT_EQ(j["refused"][i]["spec"].get<std::string>(), d.refused[i].candidate.spec);
+    EXPECT_EQ(j["refused"][i].contains("z"), d.refused[i].calibrated);
+  }
+  // The text says so.
+  const std::string text = DiagnosisReport(d, ParseModelSpec("pol"), options);
+  std::printf("%s", text.c_str());
+  EXPECT_NE(text.find("not suggested"), std::string::npos) << text;
+  EXPECT_NE(text.find(d.refused.front().reason), std::string::npos) << text;
+  // A Coulomb step found: a friction candidate of its joint that passed against the model
+  // alone is explained by the suggestion and refused after it, and says so.
+  auto coulomb = Clean(HiddenEffect::kCoulomb, 2, 0.1, 20.0);
+  AddWhiteNoise(0.01, 3, &coulomb.train);
+  AddWhiteNoise(0.01, 4, &coulomb.test);
+  const RobotModel pol = Fit(ParseModelSpec("pol"), coulomb.train);
+  const Diagnosis found =
+      Diagnose(pol, coulomb.test.X, coulomb.test.Y, coulomb.test.t, WithTraining(coulomb.train));
+  std::printf("%s", DiagnosisReport(found, ParseModelSpec("pol"), options).c_str());
+  ASSERT_FALSE(found.suggestions.empty());
+  bool explained_on_its_joint = false;
+  for (const Refusal& r : found.refused) {
+    EXPECT_EQ(r.after_suggestions, r.reason.rfind("with the suggestions before it, ", 0) == 0)
+        << r.reason;
+    for (const Suggestion& s : found.suggestions) {
+      EXPECT_FALSE(s.effect == r.candidate.effect && s.joint == r.candidate.joint) << s.spec;
+    }
+    explained_on_its_joint |= r.after_suggestions && r.candidate.joint == 2;
+  }
+  EXPECT_TRUE(explained_on_its_joint);
+  // max_refused caps the list.
+  DiagnosisOptions none = options;
+  none.max_refused = 0;
+  EXPECT_TRUE(Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, none).refused.empty());
+  none.max_refused = -1;
+  EXPECT_THROW(Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, none),
+               std::invalid_argument);
 }
 
 // With at least `folds` trajectories (t restarting at each), a suggestion is confirmed by

@@ -475,6 +475,42 @@ TEST(Report, SaysWhenNoMissingEffectIsFound) {
   EXPECT_EQ(plain.find("id=\"suggestions\""), std::string::npos);
 }
 
+// The closest refused candidates, with the bar each failed, under the verdict: with
+// suggestions and without; their strings escaped.
+TEST(Report, ListsTheRefusedCandidatesWithTheirBar) {
+  for (const bool with_suggestions : {true, false}) {
+    ReportData data = MakeReport(2, 200, with_suggestions);
+    EXPECT_EQ(RenderHtml(data).find("Not suggested"), std::string::npos);
+    Refusal r;
+    r.candidate.effect = "drift";
+    r.candidate.joint = 2;
+    r.candidate.scope = "log";
+    r.candidate.spec = "drift@2:span=8;t0=79";
+    r.candidate.score_uncorrected = 358.9;
+    r.candidate.fold_rms_ratio = 0.95;
+    r.candidate.residual_rms_before = 10.6;
+    r.candidate.residual_rms_after = 7.02;
+    r.bar = "calibrated_evidence";
+    r.reason = "calibrated evidence -2.3 nats <= 10 (inflation 15.4)";
+    data.diagnosis.refused = {r};
+    std::string html = RenderHtml(data);
+    const std::string section = Section(html, "suggestions");
+    EXPECT_NE(section.find("Not suggested: the 1 closest candidates"), std::string::npos) << section;
+    EXPECT_NE(section.find("<td class=\"text\">calibrated evidence -2.3 nats &lt;= 10 (inflation "
+                           "15.4)</td><td>358.9</td><td>0.95</td><td>10.6 &rarr; 7.02</td>"),
+              std::string::npos)
+        << section;
+    EXPECT_NE(section.find("<code>drift@2:span=8;t0=79</code>"), std::string::npos);
+    EXPECT_NE(section.find("<b>drift</b><br><span class=\"muted small\">in this log only"),
+              std::string::npos);
+    data.diagnosis.refused[0].reason = kHostileLabel;
+    data.diagnosis.refused[0].candidate.spec = kHostileFile;
+    html = RenderHtml(data);
+    EXPECT_EQ(html.find(kHostileFile), std::string::npos);
+    EXPECT_EQ(html.find("pwned=1</script>"), std::string::npos);
+  }
+}
+
 TEST(Report, ComparesErrorsOfTheModels) {
   ReportData data = MakeReport(2, 100, false);
   data.errors[1].rms[1] = 0.42;  // worse on joint 2

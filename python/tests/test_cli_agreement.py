@@ -96,5 +96,8 @@ def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     assert (first.effect, first.joint) == ("coulomb", 2)
     assert first.score == expected["suggestions"][0]["score"]
     assert [f.rms for f in diagnosis.joints] == [f["rms"] for f in expected["joints"]]
+    # The refused candidates too, with the bar each failed.
+    assert [(r.candidate.spec, r.bar, r.reason) for r in diagnosis.refused] == \
+        [(r["spec"], r["refused_by"], r["reason"]) for r in expected["refused"]]
     assert "missing Coulomb friction" in str(diagnosis)
     assert structgp.parse_model(diagnosis.suggested_model) == "pol + coulomb@2:width=0.01"

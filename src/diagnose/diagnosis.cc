@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include <Eigen/Cholesky>
 #include <boost/math/distributions/chi_squared.hpp>
@@ -289,6 +291,9 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
   if (max_suggestions < 0) {
     return fail("max_suggestions: expected >= 0, got " + std::to_string(max_suggestions));
   }
+  if (max_refused < 0) {
+    return fail("max_refused: expected >= 0, got " + std::to_string(max_refused));
+  }
   if (bins < 1) return fail("bins: expected >= 1, got " + std::to_string(bins));
   const std::vector<std::string> known = EffectNames();
   for (const std::string& name : candidates) {
@@ -356,6 +361,30 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
 }
 
 namespace {
+
+// Suggestions by score, at most max_suggestions; refused candidates (those that passed against
+// the model alone first, then by their white-noise gain), at most max_refused, without an effect that is suggested on that joint (in either scope).
+void OrderFindings(const DiagnosisOptions& options, Diagnosis* d) {
+  std::stable_sort(d->suggestions.begin(), d->suggestions.end(),
+                   [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
+  if (static_cast<int>(d->suggestions.size()) > options.max_suggestions) {
+    d->suggestions.resize(static_cast<size_t>(options.max_suggestions));
+  }
+  auto suggested = [&](const Refusal& r) {
+    return std::any_of(d->suggestions.begin(), d->suggestions.end(), [&](const Suggestion& s) {
+      return s.effect == r.candidate.effect && s.joint == r.candidate.joint;
+    });
+  };
+  d->refused.erase(std::remove_if(d->refused.begin(), d->refused.end(), suggested),
+                   d->refused.end());
+  std::stable_sort(d->refused.begin(), d->refused.end(), [](const Refusal& a, const Refusal& b) {
+    if (a.after_suggestions != b.after_suggestions) return a.after_suggestions;
+    return a.candidate.score_uncorrected > b.candidate.score_uncorrected;
+  });
+  if (static_cast<int>(d->refused.size()) > options.max_refused) {
+    d->refused.resize(static_cast<size_t>(options.max_refused));
+  }
+}
 
 // Diagnose, with numerical trouble deep inside (a profile of the evidence, the Nystrom
 // factorisation, a prediction) as std::runtime_error.
@@ -783,8 +812,10 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->residual_before_rows = b.residual.col(j).tail(m_log);
     s->residual_after_rows = a.residual_after.tail(m_log);
   };
-  // Scores candidate ci against the base b; true when it passes every bar of this round.
-  auto evaluate = [&](const BaseFits& b, size_t ci, int round, Suggestion* s) {
+  // Scores candidate ci against the base b; true when it passes every bar of this round. When
+  // it does not (and the columns could be added), *refusal names the first bar it failed and
+  // holds its numbers as far as they were computed.
+  auto evaluate = [&](const BaseFits& b, size_t ci, int round, Suggestion* s, Refusal* refusal) {
     const Candidate& c = candidates[ci];
     const int j = c.joint - 1;
     const Addition a = add_columns(b, c.cols, j);
@@ -795,46 +826,90 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     const double res_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
     const double noise = out.joints[static_cast<size_t>(j)].noise_std_estimate;
     const double effect_rms = std::sqrt(a.change.tail(m_log).squaredNorm() / m_log);
+    s->effect = c.effect;
+    s->joint = c.joint;
+    s->score = gain_white;
+    s->score_uncorrected = gain_white;
+    s->effect_rms = effect_rms;
+    s->effect_to_noise = noise > 0 ? effect_rms / noise : HUGE_VAL;
+    record_outcome(b, a, j, s);
+    s->confirmation = confirmation;
+    s->confirmation_folds = num_folds;
+    s->confirmation_gap = gap;
+    s->spec = c.spec;
+    s->scope = c.scope;
+    s->params = MakeEffect(c.effect, c.params)->parameters();
+    auto refuse = [&](const char* bar, const std::string& reason, bool calibrated) {
+      refusal->bar = bar;
+      refusal->reason = reason;
+      refusal->calibrated = calibrated;
+      return false;
+    };
     // Cheap bars first (the calibration below costs O(m K) per column).
-    if (!(gain_white > options.min_log_evidence_gain)) return false;
+    if (!(gain_white > options.min_log_evidence_gain)) {
+      return refuse("evidence",
+                    internal::Format("evidence %.3g nats <= %.3g", gain_white,
+                                     options.min_log_evidence_gain),
+                    false);
+    }
     // Held out, each fold weighs the same: a fold that the model extrapolates to badly (its
     // error far above the others') does not drown what the effect does in the others.
-    if (!(a.fold_ratio < 1.0 - options.min_relative_rms_gain)) return false;
+    if (!(a.fold_ratio < 1.0 - options.min_relative_rms_gain)) {
+      return refuse("held_out",
+                    internal::Format("held-out mean fold RMS ratio %.3g >= %.3g", a.fold_ratio,
+                                     1.0 - options.min_relative_rms_gain),
+                    false);
+    }
     // The effect's size on this log; or, when a refit absorbs it in sample, out of sample.
     const bool large_held_out = a.fold_ratio <= 1.0 - options.held_out_fall_alone;
     if (!large_held_out) {
-      if (!(res_after <= (1.0 - options.min_residual_fall) * res_before)) return false;
-      if (!(effect_rms >= options.min_effect_to_noise * noise)) return false;
+      if (!(res_after <= (1.0 - options.min_residual_fall) * res_before)) {
+        return refuse("residual_fall",
+                      internal::Format("residual falls %.3g%% (%.4g -> %.4g) < %.3g%%",
+                                       res_before > 0 ? 100.0 * (1.0 - res_after / res_before)
+                                                      : 0.0,
+                                       res_before, res_after, 100.0 * options.min_residual_fall),
+                      false);
+      }
+      if (!(effect_rms >= options.min_effect_to_noise * noise)) {
+        return refuse("effect_size",
+                      internal::Format("effect %.3g times the noise < %.3g", s->effect_to_noise,
+                                       options.min_effect_to_noise),
+                      false);
+      }
     }
     const double inflation = calibrate(b, c.cols, a.residual_after);
     const double statistic = a.statistic / inflation;
     const double dof = static_cast<double>(c.cols.size());
     const double p = boost::math::cdf(boost::math::complement(
         boost::math::chi_squared_distribution<double>(dof), statistic));
-    s->effect = c.effect;
-    s->joint = c.joint;
     s->score = 0.5 * statistic - a.occam;
-    s->score_uncorrected = gain_white;
     s->inflation = inflation;
     s->effective_samples = m / inflation;
     s->p_value = p;
     s->adjusted_p_value = adjust(p, round);
-    s->effect_rms = effect_rms;
-    s->effect_to_noise = noise > 0 ? effect_rms / noise : HUGE_VAL;
     s->z = std::sqrt(statistic);
-    record_outcome(b, a, j, s);
-    s->confirmation = confirmation;
-    s->confirmation_folds = num_folds;
-    s->confirmation_gap = gap;
-    s->params = MakeEffect(c.effect, c.params)->parameters();
-    s->spec = c.spec;
-    s->scope = c.scope;
-    return s->score > options.min_log_evidence_gain && s->z >= options.min_effect_z &&
-           p <= threshold(round);
+    if (!(s->score > options.min_log_evidence_gain)) {
+      return refuse("calibrated_evidence",
+                    internal::Format("calibrated evidence %.3g nats <= %.3g (inflation %.3g)",
+                                     s->score, options.min_log_evidence_gain, inflation),
+                    true);
+    }
+    if (!(s->z >= options.min_effect_z)) {
+      return refuse("z", internal::Format("z %.3g < %.3g", s->z, options.min_effect_z), true);
+    }
+    if (!(p <= threshold(round))) {
+      return refuse("significance",
+                    internal::Format("p %.3g > %.3g (adjusted p %.3g)", p, threshold(round),
+                                     s->adjusted_p_value),
+                    true);
+    }
+    return true;
   };
 
   // The suggestions so far, with the candidate each one is.
   std::vector<std::pair<int, Suggestion>> picks;
+  std::map<std::tuple<std::string, int, std::string>, Refusal> refused;
   BaseFits base;
   while (static_cast<int>(picks.size()) < options.max_suggestions) {
     if (!fit_base(B, &base)) {
@@ -849,7 +924,28 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     for (size_t ci = 0; ci < candidates.size(); ++ci) {
       if (!candidates[ci].alive) continue;
       Suggestion s;
-      if (!evaluate(base, ci, round, &s)) continue;
+      Refusal refusal;
+      if (!evaluate(base, ci, round, &s, &refusal)) {
+        // Against the model as given, the closest parameter set of each effect, joint and
+        // scope; a candidate that passed there and fails after the suggestions chosen since
+        // replaces it (the suggestions explain it).
+        const bool passed_before = eligible.count(static_cast<int>(ci)) > 0;
+        if ((round == 0 || passed_before) && !refusal.bar.empty()) {
+          const auto key = std::make_tuple(s.effect, s.joint, s.scope);
+          auto it = refused.find(key);
+          if (passed_before || it == refused.end() ||
+              (!it->second.after_suggestions &&
+               s.score_uncorrected > it->second.candidate.score_uncorrected)) {
+            s.residual_before_rows.resize(0);
+            s.residual_after_rows.resize(0);
+            refusal.candidate = std::move(s);
+            refusal.after_suggestions = passed_before;
+            if (passed_before) refusal.reason = "with the suggestions before it, " + refusal.reason;
+            refused[key] = std::move(refusal);
+          }
+        }
+        continue;
+      }
       eligible.emplace(static_cast<int>(ci), s);
       if (best < 0 || s.score > best_s.score) {
         best = static_cast<int>(ci);
@@ -959,11 +1055,8 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
   }
   for (auto& [ci, s] : picks) out.suggestions.push_back(std::move(s));
-  std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
-                   [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
-  if (static_cast<int>(out.suggestions.size()) > options.max_suggestions) {
-    out.suggestions.resize(static_cast<size_t>(options.max_suggestions));
-  }
+  for (auto& [key, r] : refused) out.refused.push_back(std::move(r));
+  OrderFindings(options, &out);
   return out;
 }
 
@@ -1145,12 +1238,9 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
             joint.joints[static_cast<size_t>(j - 1)].noise_std_estimate;
         out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
                                joint.suggestions.end());
+        out.refused.insert(out.refused.end(), joint.refused.begin(), joint.refused.end());
       }
-      std::stable_sort(out.suggestions.begin(), out.suggestions.end(),
-                       [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
-      if (static_cast<int>(out.suggestions.size()) > options.max_suggestions) {
-        out.suggestions.resize(static_cast<size_t>(options.max_suggestions));
-      }
+      OrderFindings(options, &out);
     }
     if (out.status == DiagnosisStatus::kOk) {
       if (options.training_inputs.size() != 0) {
@@ -1170,6 +1260,50 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
     return out;
   }
 }
+
+namespace {
+
+// A suggestion's FINDINGS.json object; without the numbers of the calibration when
+// `calibrated` is false (a refused candidate that a cheap bar stopped first).
+nlohmann::ordered_json SuggestionJson(const Suggestion& s, bool calibrated) {
+  nlohmann::ordered_json js;
+  js["effect"] = s.effect;
+  js["joint"] = s.joint;
+  js["score"] = s.score;
+  js["rms_before"] = s.rms_before;
+  js["rms_after"] = s.rms_after;
+  js["residual_rms_before"] = s.residual_rms_before;
+  js["residual_rms_after"] = s.residual_rms_after;
+  js["score_uncorrected"] = s.score_uncorrected;
+  js["inflation"] = s.inflation;
+  js["effective_samples"] = s.effective_samples;
+  js["p_value"] = s.p_value;
+  js["adjusted_p_value"] = s.adjusted_p_value;
+  js["effect_rms"] = s.effect_rms;
+  js["effect_to_noise"] = s.effect_to_noise;
+  js["z"] = s.z;
+  js["confirmation"] = {{"method", s.confirmation},
+                        {"folds", s.confirmation_folds},
+                        {"gap", s.confirmation_gap},
+                        {"folds_improved", s.folds_improved},
+                        {"fold_rms_ratio", s.fold_rms_ratio},
+                        {"rms_before", s.rms_before},
+                        {"rms_after", s.rms_after}};
+  js["selection"] = s.selection;
+  js["scope"] = s.scope;
+  js["params"] = nlohmann::ordered_json::object();
+  for (const auto& [k, v] : s.params) js["params"][k] = v;
+  js["spec"] = s.spec;
+  if (!calibrated) {
+    for (const char* key : {"score", "inflation", "effective_samples", "p_value",
+                            "adjusted_p_value", "z"}) {
+      js.erase(key);
+    }
+  }
+  return js;
+}
+
+}  // namespace
 
 std::string ToJson(const Diagnosis& d) {
   nlohmann::ordered_json j;
@@ -1201,36 +1335,15 @@ std::string ToJson(const Diagnosis& d) {
     j["joints"].push_back(jf);
   }
   j["suggestions"] = nlohmann::ordered_json::array();
-  for (const auto& s : d.suggestions) {
-    nlohmann::ordered_json js;
-    js["effect"] = s.effect;
-    js["joint"] = s.joint;
-    js["score"] = s.score;
-    js["rms_before"] = s.rms_before;
-    js["rms_after"] = s.rms_after;
-    js["residual_rms_before"] = s.residual_rms_before;
-    js["residual_rms_after"] = s.residual_rms_after;
-    js["score_uncorrected"] = s.score_uncorrected;
-    js["inflation"] = s.inflation;
-    js["effective_samples"] = s.effective_samples;
-    js["p_value"] = s.p_value;
-    js["adjusted_p_value"] = s.adjusted_p_value;
-    js["effect_rms"] = s.effect_rms;
-    js["effect_to_noise"] = s.effect_to_noise;
-    js["z"] = s.z;
-    js["confirmation"] = {{"method", s.confirmation},
-                          {"folds", s.confirmation_folds},
-                          {"gap", s.confirmation_gap},
-                          {"folds_improved", s.folds_improved},
-                          {"fold_rms_ratio", s.fold_rms_ratio},
-                          {"rms_before", s.rms_before},
-                          {"rms_after", s.rms_after}};
-    js["selection"] = s.selection;
-    js["scope"] = s.scope;
-    js["params"] = nlohmann::ordered_json::object();
-    for (const auto& [k, v] : s.params) js["params"][k] = v;
-    js["spec"] = s.spec;
-    j["suggestions"].push_back(js);
+  for (const auto& s : d.suggestions) j["suggestions"].push_back(SuggestionJson(s, true));
+  j["refused"] = nlohmann::ordered_json::array();
+  for (const auto& r : d.refused) {
+    nlohmann::ordered_json jr = SuggestionJson(r.candidate, r.calibrated);
+    jr.erase("selection");
+    jr["refused_by"] = r.bar;
+    jr["reason"] = r.reason;
+    jr["after_suggestions"] = r.after_suggestions;
+    j["refused"].push_back(jr);
   }
   nlohmann::ordered_json c;
   c["verdict"] = ToString(d.coverage.verdict);

@@ -17,6 +17,23 @@ using internal::Table;
 // least this fraction of the residual variance.
 constexpr double kMinExplained = 0.05;
 
+// The closest candidates that were not suggested, and the bar each one failed.
+std::string Refusals(const Diagnosis& d) {
+  if (d.refused.empty()) return "";
+  std::string text = "not suggested (the closest candidates, and the bar that refused each):\n";
+  for (const Refusal& r : d.refused) {
+    const Suggestion& c = r.candidate;
+    text += Format("  joint %d: %s%s (%s): %s", c.joint, DescribeEffect(c).c_str(),
+                   c.scope == "log" ? ", in this log only" : "", c.spec.c_str(), r.reason.c_str());
+    if (r.bar != "evidence") {
+      text += Format("; evidence %+.0f nats as white noise", c.score_uncorrected);
+    }
+    if (r.bar != "held_out") text += Format("; held-out mean fold ratio %.2f", c.fold_rms_ratio);
+    text += Format("; residual RMS %.3g -> %.3g\n", c.residual_rms_before, c.residual_rms_after);
+  }
+  return text;
+}
+
 }  // namespace
 
 std::string DescribeEffect(const Suggestion& s) {
@@ -78,6 +95,7 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
             : "uncorrected",
         options.significance, 100.0 * options.min_residual_fall, options.min_effect_to_noise,
         100.0 * options.min_relative_rms_gain);
+    os << Refusals(d);
     return os.str();
   }
   const std::string existing = ToString(spec.effects);
@@ -102,6 +120,7 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
         s.fold_rms_ratio, s.rms_before, s.rms_after,
         shell_word((existing.empty() ? "" : existing + ",") + s.spec).c_str());
   }
+  os << Refusals(d);
   return os.str();
 }
 

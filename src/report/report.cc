@@ -627,6 +627,34 @@ std::string FormatP(double p) {
   return FormatNumber(p, 2);
 }
 
+
+// The closest candidates that were not suggested, each with the bar that refused it.
+std::string RefusedTable(const Diagnosis& d) {
+  if (d.refused.empty()) return "";
+  std::string html =
+      "<details class=\"refused\"><summary>Not suggested: the " +
+      std::to_string(d.refused.size()) +
+      " closest candidates, and the bar that refused each</summary>\n<table>\n<thead><tr>"
+      "<th class=\"text\">Effect</th><th>Joint</th><th class=\"text\">Refused by</th>"
+      "<th title=\"With every row an independent sample\">Evidence gain (nats, "
+      "uncorrected)</th><th title=\"Mean over the folds of the held-out RMS with / without "
+      "the effect\">Held-out fold ratio</th><th>Residual RMS before &rarr; after</th>"
+      "<th class=\"text\">--effects</th></tr></thead>\n<tbody>\n";
+  for (const Refusal& r : d.refused) {
+    const Suggestion& c = r.candidate;
+    html += "<tr><td class=\"text\"><b>" + Escape(c.effect) + "</b>" +
+            (c.scope == "log" ? "<br><span class=\"muted small\">in this log only</span>"
+                              : std::string()) +
+            "</td><td>" + std::to_string(c.joint) + "</td><td class=\"text\">" +
+            Escape(r.reason) + "</td><td>" + FormatFixed(c.score_uncorrected, 1) + "</td><td>" +
+            FormatFixed(c.fold_rms_ratio, 2) + "</td><td>" +
+            FormatNumber(c.residual_rms_before, kTableDigits) + " &rarr; " +
+            FormatNumber(c.residual_rms_after, kTableDigits) + "</td><td class=\"text\"><code>" +
+            Escape(c.spec) + "</code></td></tr>\n";
+  }
+  return html + "</tbody>\n</table>\n</details>\n";
+}
+
 void AppendSuggestions(const Diagnosis& d, std::string* html) {
   *html += "<section id=\"suggestions\">\n<h2>Suggested effects</h2>\n";
   if (d.suggestions.empty()) {
@@ -644,7 +672,8 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
       default:
         why += ": the model explains these data as far as the candidates can tell.";
     }
-    *html += "<p class=\"verdict\"><b>No missing effect was found.</b> " + why + "</p>\n</section>\n";
+    *html += "<p class=\"verdict\"><b>No missing effect was found.</b> " + why + "</p>\n" +
+             RefusedTable(d) + "</section>\n";
     return;
   }
   std::string all_specs;
@@ -710,7 +739,7 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
              Parameters(s.params) + "</td><td class=\"text\"><code>" + Escape(s.spec) +
              "</code></td></tr>\n";
   }
-  *html += "</tbody>\n</table>\n</section>\n";
+  *html += "</tbody>\n</table>\n" + RefusedTable(d) + "</section>\n";
 }
 
 std::string Concentrations(const JointFinding& f) {

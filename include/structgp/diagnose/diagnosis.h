@@ -108,6 +108,8 @@ struct DiagnosisOptions {
   /// At most this many suggestions (a 7-joint arm with three friction terms on every joint
   /// has 21 missing effects).
   int max_suggestions = 32;
+  /// At most this many refused candidates in Diagnosis::refused (0: none).
+  int max_refused = 8;
   /// Quantile bins for "where the error concentrates".
   int bins = 10;
   /// Where ProposeParameters searches a parameter, by "effect.parameter", overriding the
@@ -206,6 +208,30 @@ struct Suggestion {
   std::string spec;
 };
 
+/// A candidate that was not suggested, and the bar that refused it (Diagnosis::refused): the
+/// answer to "why is X not named?". Scored against the model as given (before any
+/// suggestion), the best parameter set of its effect, joint and scope; or, when it passed
+/// every bar there, scored against the model with the suggestions chosen before it
+/// (`after_suggestions`: they explain it).
+struct Refusal {
+  /// The candidate's numbers as far as the scoring went: the evidence, held-out and size
+  /// numbers always; inflation, effective_samples, score, z and the p-values only when
+  /// `calibrated` (the cheap bars come first and the calibration is not computed after one
+  /// of them refused); residual rows are not kept.
+  Suggestion candidate;
+  /// The first bar it failed: "evidence" (min_log_evidence_gain, white-noise gain),
+  /// "held_out" (min_relative_rms_gain on fold_rms_ratio), "residual_fall" (min_residual_fall),
+  /// "effect_size" (min_effect_to_noise), "calibrated_evidence" (min_log_evidence_gain after
+  /// the autocorrelation correction), "z" (min_effect_z), "significance" (the multiplicity-
+  /// corrected test at DiagnosisOptions::significance).
+  std::string bar;
+  /// The bar with the candidate's number and the limit, e.g.
+  /// "calibrated evidence -2.3 nats <= 10".
+  std::string reason;
+  bool calibrated = false;
+  bool after_suggestions = false;
+};
+
 /// What the model's error on the log is about (Diagnosis::coverage).
 enum class Verdict {
   /// The model predicts the log to the noise on every joint: nothing to fix.
@@ -254,6 +280,11 @@ struct Diagnosis {
   std::string message;
   std::vector<JointFinding> joints;
   std::vector<Suggestion> suggestions;  ///< highest score first
+  /// The closest candidates that were not suggested (at most DiagnosisOptions::max_refused):
+  /// those that passed against the model alone and not after the suggestions first, then by
+  /// white-noise evidence gain; an effect suggested on a joint is not listed there.
+  /// FINDINGS.json "refused".
+  std::vector<Refusal> refused;
   int num_samples = 0;
   std::string model;  ///< model spec and effects in use
   /// What the candidates were scored against: the model's feature map, or Nystrom features

@@ -20,8 +20,9 @@ ModelSpec WithSuggestions(const ModelSpec& spec, const Diagnosis& diagnosis);
 
 /// Per joint: residual RMS, nMSE, noise estimate and where the error concentrates; then each
 /// suggestion ("joint 2: missing Coulomb friction (evidence +1052 nats): ...; add with
-/// --effects coulomb@2"), or why none was made. `spec` is the diagnosed model's, `options`
-/// those of the diagnosis.
+/// --effects coulomb@2"), or why none was made; then the closest refused candidates with the
+/// bar each one failed (Diagnosis::refused). `spec` is the diagnosed model's, `options` those
+/// of the diagnosis.
 std::string DiagnosisReport(const Diagnosis& diagnosis, const ModelSpec& spec,
                             const DiagnosisOptions& options);
 
