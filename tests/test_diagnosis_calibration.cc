@@ -113,6 +113,18 @@ DiagnosisOptions WithTraining(const sim::Dataset& train) {
   return options;
 }
 
+// The two-link scenario of `effect` on joint 2 with white training noise and AR(1) noise
+// (phi = 0.99) on the diagnosed log.
+sim::HiddenEffectScenario WithAr1Noise(HiddenEffect effect) {
+  auto scenario = Clean(effect, 2, 0.1, 30.0);
+  AddWhiteNoise(0.01, 1, &scenario.train);
+  std::mt19937_64 rng(2);
+  for (int j = 0; j < scenario.test.Y.cols(); ++j) {
+    scenario.test.Y.col(j) += Ar1(static_cast<int>(scenario.test.Y.rows()), 0.99, 0.03, &rng);
+  }
+  return scenario;
+}
+
 // A log whose noise is AR(1) with phi = 0.99 (m / 199 effective samples). Without a missing
 // effect nothing is suggested (scored as white noise, the wander passes for a drift of 86 nats;
 // the calibration and the held-out check both refuse it), with or without the training data.
@@ -122,12 +134,7 @@ DiagnosisOptions WithTraining(const sim::Dataset& train) {
 // Coulomb or Stribeck: the two differ only at low speed, which a fast log rarely visits.
 TEST(Calibration, AutocorrelatedNoise) {
   for (const HiddenEffect effect : {HiddenEffect::kNone, HiddenEffect::kCoulomb}) {
-    auto scenario = Clean(effect, 2, 0.1, 30.0);
-    AddWhiteNoise(0.01, 1, &scenario.train);
-    std::mt19937_64 rng(2);
-    for (int j = 0; j < scenario.test.Y.cols(); ++j) {
-      scenario.test.Y.col(j) += Ar1(static_cast<int>(scenario.test.Y.rows()), 0.99, 0.03, &rng);
-    }
+    const auto scenario = WithAr1Noise(effect);
     const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
     const DiagnosisOptions with_training = WithTraining(scenario.train);
     const Diagnosis d =
@@ -154,12 +161,7 @@ TEST(Calibration, AutocorrelatedNoise) {
 // drift when scored as white noise; the diagnosis suggests nothing, and says which bar refused
 // the drift and the other close candidates, with numbers that show it.
 TEST(Calibration, RefusedCandidatesNameTheBarThatStoppedThem) {
-  auto scenario = Clean(HiddenEffect::kNone, 2, 0.0, 30.0);
-  AddWhiteNoise(0.01, 1, &scenario.train);
-  std::mt19937_64 rng(2);
-  for (int j = 0; j < scenario.test.Y.cols(); ++j) {
-    scenario.test.Y.col(j) += Ar1(static_cast<int>(scenario.test.Y.rows()), 0.99, 0.03, &rng);
-  }
+  const auto scenario = WithAr1Noise(HiddenEffect::kNone);
   const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
   const DiagnosisOptions options = WithTraining(scenario.train);
   const Diagnosis d = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, options);
