@@ -363,7 +363,8 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
 namespace {
 
 // Suggestions by score, at most max_suggestions; refused candidates (those that passed against
-// the model alone first, then by their white-noise gain), at most max_refused, without an effect that is suggested on that joint (in either scope).
+// the model alone first, then by their white-noise gain), at most max_refused, without an
+// effect that is suggested on that joint (in either scope).
 void OrderFindings(const DiagnosisOptions& options, Diagnosis* d) {
   std::stable_sort(d->suggestions.begin(), d->suggestions.end(),
                    [](const Suggestion& a, const Suggestion& b) { return a.score > b.score; });
@@ -801,14 +802,17 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     return inflation;
   };
   // What adding columns to the base b did to joint j (the suggestion's outcome): held-out
-  // error over the folds, the residual on the diagnosed log's rows before and after.
-  auto record_outcome = [&](const BaseFits& b, const Addition& a, int j, Suggestion* s) {
+  // error over the folds, the residual on the diagnosed log's rows before and after (the rows
+  // themselves with `rows`: a suggestion's, not a refused candidate's).
+  auto record_outcome = [&](const BaseFits& b, const Addition& a, int j, Suggestion* s,
+                            bool rows) {
     s->rms_before = std::sqrt(a.sse_before / m);
     s->rms_after = std::sqrt(a.sse_after / m);
     s->residual_rms_before = std::sqrt(b.residual.col(j).tail(m_log).squaredNorm() / m_log);
     s->residual_rms_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
     s->folds_improved = a.folds_improved;
     s->fold_rms_ratio = a.fold_ratio;
+    if (!rows) return;
     s->residual_before_rows = b.residual.col(j).tail(m_log);
     s->residual_after_rows = a.residual_after.tail(m_log);
   };
@@ -832,7 +836,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->score_uncorrected = gain_white;
     s->effect_rms = effect_rms;
     s->effect_to_noise = noise > 0 ? effect_rms / noise : HUGE_VAL;
-    record_outcome(b, a, j, s);
+    record_outcome(b, a, j, s, false);
     s->confirmation = confirmation;
     s->confirmation_folds = num_folds;
     s->confirmation_gap = gap;
@@ -904,6 +908,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                                      s->adjusted_p_value),
                     true);
     }
+    record_outcome(b, a, j, s, true);
     return true;
   };
 
@@ -936,8 +941,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
           if (passed_before || it == refused.end() ||
               (!it->second.after_suggestions &&
                s.score_uncorrected > it->second.candidate.score_uncorrected)) {
-            s.residual_before_rows.resize(0);
-            s.residual_after_rows.resize(0);
             refusal.candidate = std::move(s);
             refusal.after_suggestions = passed_before;
             if (passed_before) refusal.reason = "with the suggestions before it, " + refusal.reason;
@@ -1050,7 +1053,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     for (int ci : best_set) {
       Suggestion s = eligible.at(ci);
       s.selection = "joint";
-      record_outcome(rest, best_add, joint - 1, &s);
+      record_outcome(rest, best_add, joint - 1, &s, true);
       picks.emplace_back(ci, s);
     }
   }
