@@ -44,7 +44,11 @@
 #include "experiment_program.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
+#include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/internal/text.h"
+#include "structgp/kernel/pol_chain_kernel.h"
+#include "structgp/kernel/sum_kernel.h"
+#include "structgp/model/kernel_gp.h"
 #include "structgp/rigid_body/physical_consistency.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
@@ -286,6 +290,63 @@ std::string Join(const Vector& v, const char* format) {
   return out;
 }
 
+// Variant "/joint" of a kernel model: one single-output GP per joint, each with its own kernel
+// parameters, noise and scale by type-II maximum likelihood (the library's evidence options and
+// row limits); "/chain": the same with pol's kernel replaced by joint J's PolChainKernel.
+std::vector<Prediction> PerJointKernels(const ModelSpec& spec, bool chain, const Case& c,
+                                        Row* row) {
+  const int N = c.train.num_joints();
+  const RobotModel model(spec, N);
+  const Kernel& full = *model.kernel();
+  const FitOptions defaults;
+  const Matrix& X = c.train.X;
+  const Matrix& Y = c.train.Y;
+  const std::vector<int> hyper_rows = EvenlySpacedRows(X.rows(), defaults.max_evidence_rows);
+  const std::vector<int> gp_rows = EvenlySpacedRows(X.rows(), RobotModelOptions().batch.max_kernel_rows);
+  const Matrix Xs = SelectRows(X, hyper_rows), Ys = SelectRows(Y, hyper_rows);
+  const Matrix Xg = SelectRows(X, gp_rows), Yg = SelectRows(Y, gp_rows);
+  const Hyperparameters start = model.DefaultHyperparameters(Y);
+  std::vector<Prediction> predictions;
+  for (const auto& t : c.tests) {
+    predictions.push_back({Matrix(t.X.rows(), N), Matrix(t.X.rows(), N)});
+  }
+  std::string notes;
+  for (int j = 0; j < N; ++j) {
+    std::unique_ptr<Kernel> kernel = full.Clone();
+    if (chain) {
+      const PolChainKernel joint_kernel(N, j + 1);
+      const auto* sum = dynamic_cast<const SumKernel*>(&full);
+      kernel = sum ? std::make_unique<SumKernel>(
+                         std::vector<const Kernel*>{&joint_kernel, &sum->part(1)})
+                   : joint_kernel.Clone();
+    }
+    Hyperparameters h = start;
+    h.log_output_scale = start.log_output_scale.segment(j, 1);
+    const MaximumLikelihoodSummary s =
+        FitKernelHyperparameters(*kernel, Xs, Ys.col(j), defaults.evidence, &h);
+    if (!s.usable()) throw std::runtime_error("joint " + std::to_string(j + 1) + ": " + s.message);
+    KernelGP gp(*kernel->WithParameters(h.shape), h.noise_variance(), 1, h.output_scales());
+    if (gp.Fit(Xg, Yg.col(j)) != Status::kOk) {
+      throw std::runtime_error("joint " + std::to_string(j + 1) + ": the kernel GP did not factorise");
+    }
+    Vector mean(1), latent(1), noisy(1);
+    for (size_t k = 0; k < c.tests.size(); ++k) {
+      const Matrix& T = c.tests[k].X;
+      for (Eigen::Index i = 0; i < T.rows(); ++i) {
+        if (gp.PredictWithVariance(T.row(i).transpose(), mean, latent, noisy) != Status::kOk) {
+          throw std::runtime_error("prediction failed at test row " + std::to_string(i));
+        }
+        predictions[k].mean(i, j) = mean[0];
+        predictions[k].noisy_std(i, j) = std::sqrt(noisy[0]);
+      }
+    }
+    notes += Format("%sJ%d sigma %.3g", j ? ", " : "", j + 1, std::exp(h.shape[0]));
+  }
+  row->rows = static_cast<int>(gp_rows.size());
+  row->note = "one GP per joint (" + notes + ")";
+  return predictions;
+}
+
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
              const sim::Robot& robot, const Case& c) {
   Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
@@ -301,16 +362,28 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     std::string spec_text = name;
     bool off = false;
     const auto slash = name.find('/');
+    std::string variant;
     if (slash != std::string::npos) {
-      if (name.substr(slash + 1) != "off30") {
-        throw std::invalid_argument("--models: unknown variant '" + name + "'");
+      variant = name.substr(slash + 1);
+      if (variant != "off30" && variant != "joint" && variant != "chain") {
+        throw std::invalid_argument("--models: unknown variant '" + name +
+                                    "' (expected /off30, /joint or /chain)");
       }
       spec_text = name.substr(0, slash);
-      off = true;
+      off = variant == "off30";
     }
     ModelSpec spec = ParseModelSpec(spec_text);
     if (!c.friction) spec.friction = false;  // the models are told which effects there are
-    row.model = ToString(spec) + (off ? "/off30" : "");
+    row.model = ToString(spec) + (variant.empty() ? "" : "/" + variant);
+    if (variant == "joint" || variant == "chain") {
+      if (spec.base != BaseModel::kPol && variant == "chain") {
+        throw std::invalid_argument("--models: /chain is a variant of pol");
+      }
+      predictions = PerJointKernels(spec, variant == "chain", c, &row);
+      row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      Score(c, predictions, &row);
+      return row;
+    }
     FitOptions options;
     if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
       RigidBodyChain chain = ChainOf(robot, false);

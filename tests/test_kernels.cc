@@ -27,6 +27,7 @@
 #include "structgp/feature/feature_hyperparameters.h"
 #include "structgp/feature/sum_feature_map.h"
 #include "structgp/kernel/feature_kernel.h"
+#include "structgp/kernel/pol_chain_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/leading_inputs_kernel.h"
 #include "structgp/kernel/rbf_kernel.h"
@@ -110,6 +111,14 @@ std::vector<KernelCase> AllKernels() {
                      theta << 0.4, -0.3, 0.2;
                      return k->WithParameters(theta);
                    }});
+  for (const auto& [n, joint] : std::vector<std::pair<int, int>>{{1, 1}, {4, 1}, {4, 3}, {5, 5}}) {
+    cases.push_back({"pol_chain_" + std::to_string(n) + "_joint" + std::to_string(joint),
+                     [n = n, joint = joint] {
+                       Vector theta(4);
+                       theta << 0.3 - 0.2 * joint, -0.2, 0.4, 0.1;
+                       return PolChainKernel(n, joint).WithParameters(theta);
+                     }});
+  }
   // What RobotModel builds for "rbf+fri" with an effect in function space: the base kernel
   // plus the friction and effect features as a kernel.
   cases.push_back({"sum_rbf_friction_cogging", [] {

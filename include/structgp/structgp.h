@@ -39,6 +39,7 @@
 #include "structgp/kernel/kernel.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/kernel/rbf_kernel.h"
+#include "structgp/kernel/pol_chain_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/leading_inputs_kernel.h"
