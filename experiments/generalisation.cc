@@ -42,6 +42,7 @@
 #include <Eigen/QR>
 
 #include "experiment_program.h"
+#include "lagrangian_kernel_gp.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/hyper/marginal_likelihood.h"
@@ -77,6 +78,7 @@ struct Flags {
   double train_seconds = 50.0;
   int train_vias = 50;
   int train_rows = 0;  // 0: all
+  int lagk_rows = 800;   // the Lagrangian kernel prototype's posterior rows (half for ML-II)
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -265,7 +267,7 @@ void Score(const Case& c, const std::vector<Prediction>& predictions, Row* row) 
   row->ratio = Vector::Zero(N);
   row->coverage = Vector::Zero(N);
   row->nmse = 0.0;
-  Eigen::Index total = 0;
+  Vector counted = Vector::Zero(N);
   for (size_t k = 0; k < c.tests.size(); ++k) {
     const Matrix& Y = c.tests[k].Y;
     const Prediction& p = predictions[k];
@@ -276,12 +278,13 @@ void Score(const Case& c, const std::vector<Prediction>& predictions, Row* row) 
       const double mean = Y.col(j).mean();
       const double var = (Y.col(j).array() - mean).square().mean();
       row->nmse += mse / var / (N * static_cast<double>(c.tests.size()));
-      row->coverage[j] +=
-          static_cast<double>((err.col(j).array().abs() <= 2.0 * p.noisy_std.col(j).array()).count());
+      // Rows without a predictive std (NaN: not computed) are not counted.
+      row->coverage[j] += static_cast<double>(
+          (err.col(j).array().abs() <= 2.0 * p.noisy_std.col(j).array()).count());
+      counted[j] += static_cast<double>(p.noisy_std.col(j).array().isFinite().count());
     }
-    total += Y.rows();
   }
-  row->coverage /= static_cast<double>(total);
+  row->coverage = row->coverage.cwiseQuotient(counted.cwiseMax(1.0));
 }
 
 std::string Join(const Vector& v, const char* format) {
@@ -292,9 +295,11 @@ std::string Join(const Vector& v, const char* format) {
 
 // Variant "/joint" of a kernel model: one single-output GP per joint, each with its own kernel
 // parameters, noise and scale by type-II maximum likelihood (the library's evidence options and
-// row limits); "/chain": the same with pol's kernel replaced by joint J's PolChainKernel.
-std::vector<Prediction> PerJointKernels(const ModelSpec& spec, bool chain, const Case& c,
-                                        Row* row) {
+// row limits); "/chain": the same with pol's kernel replaced by joint J's PolChainKernel;
+// "/chain1": by joint 1's on every joint (only q_1 dropped from the inertial and Coriolis terms).
+std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string& variant,
+                                        const Case& c, Row* row) {
+  const bool chain = variant != "joint";
   const int N = c.train.num_joints();
   const RobotModel model(spec, N);
   const Kernel& full = *model.kernel();
@@ -314,7 +319,7 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, bool chain, const
   for (int j = 0; j < N; ++j) {
     std::unique_ptr<Kernel> kernel = full.Clone();
     if (chain) {
-      const PolChainKernel joint_kernel(N, j + 1);
+      const PolChainKernel joint_kernel(N, variant == "chain1" ? 1 : j + 1);
       const auto* sum = dynamic_cast<const SumKernel*>(&full);
       kernel = sum ? std::make_unique<SumKernel>(
                          std::vector<const Kernel*>{&joint_kernel, &sum->part(1)})
@@ -348,11 +353,33 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, bool chain, const
 }
 
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
-             const sim::Robot& robot, const Case& c) {
+             const sim::Robot& robot, const Case& c, int lagk_rows) {
   Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
   const auto start = std::chrono::steady_clock::now();
   std::vector<Prediction> predictions;
-  if (name == "reference") {
+  if (name == "lagk" || name == "lagk+fri" || name == "lagk/link" || name == "lagk+fri/link") {
+    // The Lagrangian kernel prototype (lagrangian_kernel_gp.h) on evenly spaced rows.
+    const int m = std::min(static_cast<int>(c.train.X.rows()), lagk_rows);
+    const std::vector<int> rows = EvenlySpacedRows(c.train.X.rows(), m);
+    const std::vector<int> hyper_rows = EvenlySpacedRows(c.train.X.rows(), m / 2);
+    const bool friction = c.friction && name.rfind("lagk+fri", 0) == 0;
+    const bool per_link = name.find("/link") != std::string::npos;
+    row.model = std::string(friction ? "lagk+fri" : "lagk") + (per_link ? "/link" : "");
+    const lagrangian_prototype::Fitted fitted = lagrangian_prototype::Fit(
+        SelectRows(c.train.X, hyper_rows), SelectRows(c.train.Y, hyper_rows),
+        SelectRows(c.train.X, rows), SelectRows(c.train.Y, rows), friction, per_link);
+    row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    row.rows = m;
+    row.note = Format("one GP for every joint, Euler-Lagrange kernel (sigma %.3g, weights %s; "
+                      "ML-II on %d rows)",
+                      1.0 / fitted.theta - 1.0, Join(fitted.weights, "%.2g").c_str(),
+                      static_cast<int>(hyper_rows.size()));
+    for (const auto& t : c.tests) {
+      Prediction p;
+      lagrangian_prototype::Predict(fitted, t.X, 10, &p.mean, &p.noisy_std);
+      predictions.push_back(p);
+    }
+  } else if (name == "reference") {
     Reference reference(*c.truth, c.friction, c.noise);
     reference.Fit(c.train.X, c.train.Y);
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -365,9 +392,10 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     std::string variant;
     if (slash != std::string::npos) {
       variant = name.substr(slash + 1);
-      if (variant != "off30" && variant != "joint" && variant != "chain") {
+      if (variant != "off30" && variant != "joint" && variant != "chain" &&
+          variant != "chain1") {
         throw std::invalid_argument("--models: unknown variant '" + name +
-                                    "' (expected /off30, /joint or /chain)");
+                                    "' (expected /off30, /joint, /chain or /chain1)");
       }
       spec_text = name.substr(0, slash);
       off = variant == "off30";
@@ -375,11 +403,11 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     ModelSpec spec = ParseModelSpec(spec_text);
     if (!c.friction) spec.friction = false;  // the models are told which effects there are
     row.model = ToString(spec) + (variant.empty() ? "" : "/" + variant);
-    if (variant == "joint" || variant == "chain") {
-      if (spec.base != BaseModel::kPol && variant == "chain") {
+    if (variant == "joint" || variant == "chain" || variant == "chain1") {
+      if (spec.base != BaseModel::kPol && variant != "joint") {
         throw std::invalid_argument("--models: /chain is a variant of pol");
       }
-      predictions = PerJointKernels(spec, variant == "chain", c, &row);
+      predictions = PerJointKernels(spec, variant, c, &row);
       row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       Score(c, predictions, &row);
       return row;
@@ -444,7 +472,7 @@ int Run(const Flags& flags, int argc, char** argv) {
       }
       const Case c = MakeCase(robot, case_name, f);
       for (const std::string& model : f.models) {
-        Row row = RunModel(robot_name, case_name, model, robot, c);
+        Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
                     row.kase.c_str(), row.model.c_str(),
                     row.ratio.size() ? Join(row.ratio, "%.3g").c_str() : "-",
@@ -513,6 +541,9 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--train-rows", &f.train_rows,
                     "keep this many evenly spaced rows of the slow log (0: all)")
       ->check(structgp::AtLeast(0));
+  structgp::AddFlag(&app, "--lagk-rows", &f.lagk_rows,
+                    "rows of the Lagrangian kernel prototype lagk (half of them for ML-II)")
+      ->check(structgp::AtLeast(2));
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));

@@ -1,0 +1,332 @@
+#ifndef STRUCTGP_EXPERIMENTS_LAGRANGIAN_KERNEL_GP_H_
+#define STRUCTGP_EXPERIMENTS_LAGRANGIAN_KERNEL_GP_H_
+
+// A prototype, for measurement only: the Lagrangian structure in kernel form (one GP on the
+// entries of M(q) and on V(q), the torque kernel by the Euler-Lagrange operator applied to both
+// arguments), so that one GP explains every joint. No kinematic parameters. Dense, O((m N)^3).
+//
+// Prior: independent GPs M_jk (j <= k) with k_j(q, q') = w_M prod_{l > j} g_l (g_l = f_l^2,
+// f_l = (1 + theta cos(q_l - q'_l)) / (1 + theta): degree <= 2 in each angle, free of
+// q_1..q_j, docs/feature_maps.md section 5a), and V with w_V prod_l f_l (degree 1). Then
+//   tau_i = sum_k M_ik qdd_k + sum_{k,l} (d_l M_ik - 1/2 d_i M_kl) qd_k qd_l + d_i V,
+// linear in the functions: tau_i = sum_{j<=k} L_i^{jk} M_jk + d_i V with
+//   L_i^{jk} f = alpha f + u (qd . grad f) - gamma d_i f,
+//   alpha = [i=j] qdd_k + [i=k, j!=k] qdd_j,  u = [i=j] qd_k + [i=k, j!=k] qd_j,
+//   gamma = c qd_j qd_k (c = 1/2 on the diagonal, 1 off it),
+// and Cov(tau_i(x), tau_i'(x')) = sum_{j<=k} L_i L'_i' k_j + w_V d_i d'_i' k_V.
+// Hyper-parameters by type-II maximum likelihood (Ceres LBFGS, analytic gradient): log w_M,
+// log w_V (or, per link, one pair for each link's energies) and one log noise std per joint, at
+// the best of a few sigma.
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include "structgp/core/types.h"
+
+namespace structgp {
+namespace lagrangian_prototype {
+
+// The N x N blocks of the two kernel parts at one pair of states: kinetic (w_M = 1) and
+// potential (w_V = 1).
+// With last < n - 1: the energies of link `last` (0-based) alone, a chain's link i having
+// kinetic energy in qd_1..qd_i and q_2..q_i, potential energy in q_1..q_i (the serial-chain
+// prior: one weight per link).
+inline void Blocks(int n, double theta, const double* x, const double* y, int last, double* kin,
+                   double* pot) {
+  // Per-angle factors and their log-derivatives.
+  double r[64], rr[64], rho[64], rhorho[64], g[64], h[64];
+  const double inv = 1.0 / (1.0 + theta);
+  for (int l = 0; l < n; ++l) {
+    const double d = x[l] - y[l];
+    const double c = std::cos(d), s = std::sin(d);
+    const double hl = (1.0 + theta * c) * inv;
+    const double hq = -theta * s * inv;      // d h / d q
+    const double hqq = theta * c * inv;      // d^2 h / d q d q'
+    h[l] = hl;
+    rho[l] = hq / hl;
+    rhorho[l] = hqq / hl;
+    g[l] = hl * hl;
+    const double gq = 2.0 * hl * hq;
+    const double gqq = 2.0 * (-hq * hq + hl * hqq);
+    r[l] = gq / g[l];
+    rr[l] = gqq / g[l];
+  }
+  const double* a = x + n;       // qd
+  const double* ap = y + n;      // qd'
+  const double* b = x + 2 * n;   // qdd
+  const double* bp = y + 2 * n;  // qdd'
+  for (int p = 0; p < n * n; ++p) kin[p] = pot[p] = 0.0;
+  // Potential: d_i d'_i' prod h = Q (-rho_i rho_i' + delta (rhorho_i + rho_i^2)).
+  double Q = 1.0;
+  for (int l = 0; l <= last; ++l) Q *= h[l];
+  for (int i = 0; i <= last; ++i) {
+    for (int k = 0; k <= last; ++k) {
+      pot[i * n + k] = Q * (-rho[i] * rho[k] + (i == k ? rhorho[i] + rho[i] * rho[i] : 0.0));
+    }
+  }
+  // Kinetic: for each row j (0-based), P = prod_{l > j} g_l.
+  double P = 1.0;
+  std::vector<double> Ps(static_cast<size_t>(n));
+  for (int j = last; j >= 0; --j) {
+    Ps[static_cast<size_t>(j)] = P;
+    P *= g[j];
+  }
+  double grad[64], gradp[64], aH[64], Hap[64];
+  for (int j = 0; j <= last; ++j) {
+    const double Pj = Ps[static_cast<size_t>(j)];
+    double A = 0.0, Ap = 0.0, S = 0.0;
+    for (int l = j + 1; l <= last; ++l) {
+      A += a[l] * r[l];
+      Ap += ap[l] * r[l];
+      S += a[l] * ap[l] * (rr[l] + r[l] * r[l]);
+    }
+    const double D = Pj * A;     // qd . grad k
+    const double Dp = -Pj * Ap;  // qd' . grad' k
+    const double E = Pj * (-A * Ap + S);  // qd^T H qd'
+    for (int l = 0; l < n; ++l) {
+      const bool on = l > j && l <= last;
+      grad[l] = on ? Pj * r[l] : 0.0;
+      gradp[l] = on ? -Pj * r[l] : 0.0;
+      aH[l] = on ? Pj * (-A * r[l] + a[l] * (rr[l] + r[l] * r[l])) : 0.0;
+      Hap[l] = on ? Pj * (-r[l] * Ap + ap[l] * (rr[l] + r[l] * r[l])) : 0.0;
+    }
+    for (int k = j; k <= last; ++k) {
+      const double c = j == k ? 0.5 : 1.0;
+      const double gamma = c * a[j] * a[k], gammap = c * ap[j] * ap[k];
+      for (int i = 0; i < n; ++i) {
+        const double alpha = (i == j ? b[k] : 0.0) + (i == k && j != k ? b[j] : 0.0);
+        const double u = (i == j ? a[k] : 0.0) + (i == k && j != k ? a[j] : 0.0);
+        for (int ip = 0; ip < n; ++ip) {
+          const double alphap = (ip == j ? bp[k] : 0.0) + (ip == k && j != k ? bp[j] : 0.0);
+          const double up = (ip == j ? ap[k] : 0.0) + (ip == k && j != k ? ap[j] : 0.0);
+          const bool hi = i > j && i <= last, hip = ip > j && ip <= last;
+          const double Hii = hi && hip ? Pj * (-r[i] * r[ip] + (i == ip ? rr[i] + r[i] * r[i] : 0.0))
+                                       : 0.0;
+          kin[i * n + ip] += alpha * alphap * Pj + alpha * (up * Dp - gammap * gradp[ip]) +
+                             alphap * (u * D - gamma * grad[i]) + u * up * E -
+                             u * gammap * aH[ip] - up * gamma * Hap[i] + gamma * gammap * Hii;
+        }
+      }
+    }
+  }
+}
+
+// The semi-parametric friction beside it (the "+fri" of the other models): on joint i the
+// bases qd_i, tanh(qd_i / width) and 1, independent, prior std scale_i (1/rms_qd_i for qd_i).
+struct Friction {
+  bool enabled = false;
+  double width = 0.01;
+  Vector scale, rms_qd;
+  double Evaluate(int n, int i, const double* x, const double* y) const {
+    const double a = x[n + i], b = y[n + i];
+    return scale[i] * scale[i] *
+           (a * b / (rms_qd[i] * rms_qd[i]) + std::tanh(a / width) * std::tanh(b / width) + 1.0);
+  }
+};
+
+// Gram parts over states X (m x 3N) against Z (p x 3N), each (m N) x (p N), row index
+// state * N + i: kinetic then potential, for the whole chain (2 parts) or per link (2 N parts:
+// kinetic of links 1..N, then potential of links 1..N). F: the friction part (prior fixed).
+inline void Gram(int n, double theta, const Matrix& X, const Matrix& Z, bool per_link,
+                 bool symmetric, const Friction& fri, std::vector<Matrix>* parts, Matrix* F) {
+  const Eigen::Index m = X.rows(), p = Z.rows();
+  const int links = per_link ? n : 1;
+  parts->assign(static_cast<size_t>(2 * links), Matrix(m * n, p * n));
+  F->setZero(m * n, p * n);
+  std::vector<double> kin(static_cast<size_t>(n * n)), pot(static_cast<size_t>(n * n));
+  const Matrix Xt = X.transpose(), Zt = Z.transpose();
+  for (Eigen::Index s = 0; s < m; ++s) {
+    for (Eigen::Index t = symmetric ? s : 0; t < p; ++t) {
+      const double* xs = Xt.col(s).data();
+      const double* zt = Zt.col(t).data();
+      for (int link = 0; link < links; ++link) {
+        Blocks(n, theta, xs, zt, per_link ? link : n - 1, kin.data(), pot.data());
+        Matrix& K = (*parts)[static_cast<size_t>(link)];
+        Matrix& V = (*parts)[static_cast<size_t>(links + link)];
+        for (int i = 0; i < n; ++i) {
+          for (int k = 0; k < n; ++k) {
+            K(s * n + i, t * n + k) = kin[static_cast<size_t>(i * n + k)];
+            V(s * n + i, t * n + k) = pot[static_cast<size_t>(i * n + k)];
+            if (symmetric) {
+              K(t * n + k, s * n + i) = kin[static_cast<size_t>(i * n + k)];
+              V(t * n + k, s * n + i) = pot[static_cast<size_t>(i * n + k)];
+            }
+          }
+        }
+      }
+      if (fri.enabled) {
+        for (int i = 0; i < n; ++i) {
+          const double f = fri.Evaluate(n, i, xs, zt);
+          (*F)(s * n + i, t * n + i) = f;
+          if (symmetric) (*F)(t * n + i, s * n + i) = f;
+        }
+      }
+    }
+  }
+}
+
+inline Matrix Combine(const std::vector<Matrix>& parts, const Vector& w, const Matrix& F) {
+  Matrix C = F;
+  for (size_t k = 0; k < parts.size(); ++k) C += w[static_cast<Eigen::Index>(k)] * parts[k];
+  return C;
+}
+
+struct Fitted {
+  Friction friction;
+  bool per_link = false;
+  double theta = 0.5;
+  Vector weights;  // one per part
+  Vector noise;    // per joint, std
+  double log_evidence = 0.0;
+  Matrix X;        // training states
+  Vector alpha;    // C^{-1} y
+  Eigen::LLT<Matrix> llt;
+};
+
+// -log evidence of y (stacked state-major) and its gradient in (log w_part..., log noise_j).
+class Objective : public ceres::FirstOrderFunction {
+ public:
+  Objective(int n, const std::vector<Matrix>& parts, const Matrix& F, const Vector& y)
+      : n_(n), parts_(parts), F_(F), y_(y) {}
+  int NumParameters() const override { return static_cast<int>(parts_.size()) + n_; }
+  bool Evaluate(const double* p, double* cost, double* gradient) const override {
+    const int P = static_cast<int>(parts_.size());
+    Vector w(P);
+    for (int k = 0; k < P; ++k) w[k] = std::exp(p[k]);
+    Matrix C = Combine(parts_, w, F_);
+    for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += std::exp(2.0 * p[P + r % n_]);
+    Eigen::LLT<Matrix> llt(C);
+    if (llt.info() != Eigen::Success) return false;
+    const Vector alpha = llt.solve(y_);
+    double logdet = 0.0;
+    for (Eigen::Index r = 0; r < C.rows(); ++r) logdet += std::log(llt.matrixL()(r, r));
+    *cost = 0.5 * y_.dot(alpha) + logdet;
+    if (!std::isfinite(*cost)) return false;
+    if (gradient != nullptr) {
+      const Matrix Ci = llt.solve(Matrix::Identity(C.rows(), C.rows()));
+      // d cost / d log w = 1/2 (tr(C^-1 A) - alpha^T A alpha) w.
+      for (int k = 0; k < P; ++k) {
+        const Matrix& A = parts_[static_cast<size_t>(k)];
+        gradient[k] = 0.5 * w[k] * ((Ci.cwiseProduct(A)).sum() - alpha.dot(A * alpha));
+      }
+      for (int j = 0; j < n_; ++j) {
+        double tr = 0.0, aa = 0.0;
+        for (Eigen::Index r = j; r < C.rows(); r += n_) {
+          tr += Ci(r, r);
+          aa += alpha[r] * alpha[r];
+        }
+        gradient[P + j] = (tr - aa) * std::exp(2.0 * p[P + j]);
+      }
+    }
+    return true;
+  }
+
+ private:
+  int n_;
+  const std::vector<Matrix>& parts_;
+  const Matrix& F_;
+  const Vector& y_;
+};
+
+inline Vector Stack(const Matrix& Y) {
+  Vector y(Y.size());
+  for (Eigen::Index s = 0; s < Y.rows(); ++s) y.segment(s * Y.cols(), Y.cols()) = Y.row(s).transpose();
+  return y;
+}
+
+// Hyper-parameters on (Xh, Yh), then the posterior on (X, Y); sigmas tried: 0.3, 1, 3, 10.
+inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Matrix& Y,
+                  bool friction, bool per_link) {
+  const int n = static_cast<int>(Y.cols());
+  const Vector yh = Stack(Yh);
+  Fitted best;
+  best.per_link = per_link;
+  best.friction.enabled = friction;
+  best.friction.scale.resize(n);
+  best.friction.rms_qd.resize(n);
+  for (int j = 0; j < n; ++j) {
+    best.friction.scale[j] = std::sqrt(Y.col(j).squaredNorm() / Y.rows());
+    best.friction.rms_qd[j] = std::max(std::sqrt(X.col(n + j).squaredNorm() / X.rows()), 1e-3);
+  }
+  best.log_evidence = -INFINITY;
+  for (double sigma : {0.3, 1.0, 3.0, 10.0}) {
+    const double theta = 1.0 / (1.0 + sigma);
+    std::vector<Matrix> parts;
+    Matrix F;
+    Gram(n, theta, Xh, Xh, per_link, true, best.friction, &parts, &F);
+    const int P = static_cast<int>(parts.size());
+    std::vector<double> p(static_cast<size_t>(P + n));
+    // Start: every part at the torque's spread, noise 10% of each joint's RMS torque.
+    const double spread = yh.squaredNorm() / yh.size();
+    for (int k = 0; k < P; ++k) {
+      p[static_cast<size_t>(k)] =
+          std::log(spread / P / (parts[static_cast<size_t>(k)].diagonal().mean() + 1e-300));
+    }
+    for (int j = 0; j < n; ++j) {
+      p[static_cast<size_t>(P + j)] =
+          std::log(0.1 * std::sqrt(Yh.col(j).squaredNorm() / Yh.rows()));
+    }
+    ceres::GradientProblem problem(new Objective(n, parts, F, yh));
+    ceres::GradientProblemSolver::Options o;
+    o.max_num_iterations = 80;
+    ceres::GradientProblemSolver::Summary summary;
+    ceres::Solve(o, problem, p.data(), &summary);
+    std::printf("    lagk%s sigma %.2g: -log evidence %.6g (%d iterations, %s)\n",
+                per_link ? "/link" : "", sigma, summary.final_cost,
+                static_cast<int>(summary.iterations.size()),
+                summary.termination_type == ceres::CONVERGENCE ? "converged" : "stopped");
+    std::fflush(stdout);
+    if (-summary.final_cost > best.log_evidence) {
+      best.log_evidence = -summary.final_cost;
+      best.theta = theta;
+      best.weights.resize(P);
+      for (int k = 0; k < P; ++k) best.weights[k] = std::exp(p[static_cast<size_t>(k)]);
+      best.noise.resize(n);
+      for (int j = 0; j < n; ++j) best.noise[j] = std::exp(p[static_cast<size_t>(P + j)]);
+    }
+  }
+  std::vector<Matrix> parts;
+  Matrix F;
+  Gram(n, best.theta, X, X, per_link, true, best.friction, &parts, &F);
+  Matrix C = Combine(parts, best.weights, F);
+  parts.clear();
+  for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += best.noise[r % n] * best.noise[r % n];
+  best.llt.compute(C);
+  best.alpha = best.llt.solve(Stack(Y));
+  best.X = X;
+  return best;
+}
+
+// Mean (m x N) at the states Z, and the noisy predictive std at every `stride`-th row (other
+// rows: NaN).
+inline void Predict(const Fitted& f, const Matrix& Z, int stride, Matrix* mean, Matrix* noisy_std) {
+  const int n = static_cast<int>(f.noise.size());
+  mean->resize(Z.rows(), n);
+  noisy_std->setConstant(Z.rows(), n, std::nan(""));
+  std::vector<Matrix> parts;
+  Matrix F;
+  for (Eigen::Index s = 0; s < Z.rows(); ++s) {
+    Gram(n, f.theta, Z.row(s), f.X, f.per_link, false, f.friction, &parts, &F);
+    const Matrix Ks = Combine(parts, f.weights, F);  // N x (m N)
+    mean->row(s) = (Ks * f.alpha).transpose();
+    if (s % stride == 0) {
+      Gram(n, f.theta, Z.row(s), Z.row(s), f.per_link, false, f.friction, &parts, &F);
+      const Matrix Kss = Combine(parts, f.weights, F);
+      const Matrix v = f.llt.matrixL().solve(Ks.transpose());
+      const Matrix cov = Kss - v.transpose() * v;
+      for (int i = 0; i < n; ++i) {
+        (*noisy_std)(s, i) = std::sqrt(std::max(cov(i, i), 0.0) + f.noise[i] * f.noise[i]);
+      }
+    }
+  }
+}
+
+}  // namespace lagrangian_prototype
+}  // namespace structgp
+
+#endif  // STRUCTGP_EXPERIMENTS_LAGRANGIAN_KERNEL_GP_H_
