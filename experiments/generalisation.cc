@@ -4,7 +4,7 @@
 //   generalisation [--robots=two_link,three_link,puma560,panda] [--cases=none,friction,payload]
 //                  [--models=reference,rbd+fri,rbd+fri/off30,lag+fri,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
-//                  [--out=FILE.csv]
+//                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--out=FILE.csv]
 //                  [--quick] [--check]
 //
 // Per robot and case: a slow training log (--train-vias via points in --train-seconds, seed 1,
@@ -19,7 +19,11 @@
 // simulated chain (sim::ToUrdf -> RigidBodyChain, armature included) plus the true friction
 // bases: what a model that knows the kinematics and the effect bases gets; every other model is
 // fitted by the library's workflow with the CLI's defaults (FitModel, type-II maximum
-// likelihood). rbd and rbd+pol use the robot's URDF (armature not in it); "/off30" centres rbd's
+// likelihood). Variants of kernel models: "/joint" one GP per joint with its own
+// hyper-parameters, "/chain" the same with joint J's PolChainKernel for pol, "/chain1" joint 1's
+// on every joint. "lagk" (lagrangian_kernel_gp.h) is a dense prototype of the Euler-Lagrange
+// kernel (one GP for all joints), "/link" with one weight per link's energies.
+// rbd and rbd+pol use the robot's URDF (armature not in it); "/off30" centres rbd's
 // prior (rbd+pol: its prior mean) on inertial parameters each off by up to +-30%.
 //
 // Columns: test RMS / noise per joint (the mean over the test logs; 1.0 is a perfect model),
@@ -78,7 +82,8 @@ struct Flags {
   double train_seconds = 50.0;
   int train_vias = 50;
   int train_rows = 0;  // 0: all
-  int lagk_rows = 800;   // the Lagrangian kernel prototype's posterior rows (half for ML-II)
+  int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
+  int lagk_hyper_rows = 400;  // and its ML-II rows
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -353,7 +358,7 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
 }
 
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
-             const sim::Robot& robot, const Case& c, int lagk_rows) {
+             const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows) {
   Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
   const auto start = std::chrono::steady_clock::now();
   std::vector<Prediction> predictions;
@@ -361,7 +366,8 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     // The Lagrangian kernel prototype (lagrangian_kernel_gp.h) on evenly spaced rows.
     const int m = std::min(static_cast<int>(c.train.X.rows()), lagk_rows);
     const std::vector<int> rows = EvenlySpacedRows(c.train.X.rows(), m);
-    const std::vector<int> hyper_rows = EvenlySpacedRows(c.train.X.rows(), m / 2);
+    const std::vector<int> hyper_rows =
+        EvenlySpacedRows(c.train.X.rows(), std::min(m, lagk_hyper_rows));
     const bool friction = c.friction && name.rfind("lagk+fri", 0) == 0;
     const bool per_link = name.find("/link") != std::string::npos;
     row.model = std::string(friction ? "lagk+fri" : "lagk") + (per_link ? "/link" : "");
@@ -472,7 +478,8 @@ int Run(const Flags& flags, int argc, char** argv) {
       }
       const Case c = MakeCase(robot, case_name, f);
       for (const std::string& model : f.models) {
-        Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows);
+        Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows,
+                           f.lagk_hyper_rows);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
                     row.kase.c_str(), row.model.c_str(),
                     row.ratio.size() ? Join(row.ratio, "%.3g").c_str() : "-",
@@ -542,7 +549,10 @@ int main(int argc, char** argv) {
                     "keep this many evenly spaced rows of the slow log (0: all)")
       ->check(structgp::AtLeast(0));
   structgp::AddFlag(&app, "--lagk-rows", &f.lagk_rows,
-                    "rows of the Lagrangian kernel prototype lagk (half of them for ML-II)")
+                    "rows of the Lagrangian kernel prototype lagk's posterior")
+      ->check(structgp::AtLeast(2));
+  structgp::AddFlag(&app, "--lagk-hyper-rows", &f.lagk_hyper_rows,
+                    "rows of lagk's type-II maximum likelihood")
       ->check(structgp::AtLeast(2));
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));

@@ -132,12 +132,17 @@ struct Friction {
 // Gram parts over states X (m x 3N) against Z (p x 3N), each (m N) x (p N), row index
 // state * N + i: kinetic then potential, for the whole chain (2 parts) or per link (2 N parts:
 // kinetic of links 1..N, then potential of links 1..N). F: the friction part (prior fixed).
+// With weights: one part, the weighted sum of them all plus F (F is then left empty).
 inline void Gram(int n, double theta, const Matrix& X, const Matrix& Z, bool per_link,
-                 bool symmetric, const Friction& fri, std::vector<Matrix>* parts, Matrix* F) {
+                 bool symmetric, const Friction& fri, std::vector<Matrix>* parts, Matrix* F,
+                 const Vector* weights = nullptr) {
   const Eigen::Index m = X.rows(), p = Z.rows();
   const int links = per_link ? n : 1;
-  parts->assign(static_cast<size_t>(2 * links), Matrix(m * n, p * n));
-  F->setZero(m * n, p * n);
+  const bool combine = weights != nullptr;
+  parts->assign(combine ? 1 : static_cast<size_t>(2 * links), Matrix::Zero(m * n, p * n));
+  Matrix& Fo = combine ? (*parts)[0] : *F;
+  if (combine) F->resize(0, 0);
+  else F->setZero(m * n, p * n);
   std::vector<double> kin(static_cast<size_t>(n * n)), pot(static_cast<size_t>(n * n));
   const Matrix Xt = X.transpose(), Zt = Z.transpose();
   for (Eigen::Index s = 0; s < m; ++s) {
@@ -146,15 +151,19 @@ inline void Gram(int n, double theta, const Matrix& X, const Matrix& Z, bool per
       const double* zt = Zt.col(t).data();
       for (int link = 0; link < links; ++link) {
         Blocks(n, theta, xs, zt, per_link ? link : n - 1, kin.data(), pot.data());
-        Matrix& K = (*parts)[static_cast<size_t>(link)];
-        Matrix& V = (*parts)[static_cast<size_t>(links + link)];
+        Matrix& K = (*parts)[combine ? 0 : static_cast<size_t>(link)];
+        Matrix& V = (*parts)[combine ? 0 : static_cast<size_t>(links + link)];
+        const double wk = combine ? (*weights)[link] : 1.0;
+        const double wv = combine ? (*weights)[links + link] : 1.0;
         for (int i = 0; i < n; ++i) {
           for (int k = 0; k < n; ++k) {
-            K(s * n + i, t * n + k) = kin[static_cast<size_t>(i * n + k)];
-            V(s * n + i, t * n + k) = pot[static_cast<size_t>(i * n + k)];
-            if (symmetric) {
-              K(t * n + k, s * n + i) = kin[static_cast<size_t>(i * n + k)];
-              V(t * n + k, s * n + i) = pot[static_cast<size_t>(i * n + k)];
+            const double kv = kin[static_cast<size_t>(i * n + k)];
+            const double pv = pot[static_cast<size_t>(i * n + k)];
+            K(s * n + i, t * n + k) += wk * kv;
+            V(s * n + i, t * n + k) += wv * pv;
+            if (symmetric && t != s) {
+              K(t * n + k, s * n + i) += wk * kv;
+              V(t * n + k, s * n + i) += wv * pv;
             }
           }
         }
@@ -162,8 +171,8 @@ inline void Gram(int n, double theta, const Matrix& X, const Matrix& Z, bool per
       if (fri.enabled) {
         for (int i = 0; i < n; ++i) {
           const double f = fri.Evaluate(n, i, xs, zt);
-          (*F)(s * n + i, t * n + i) = f;
-          if (symmetric) (*F)(t * n + i, s * n + i) = f;
+          Fo(s * n + i, t * n + i) += f;
+          if (symmetric && t != s) Fo(t * n + i, s * n + i) += f;
         }
       }
     }
@@ -239,7 +248,7 @@ inline Vector Stack(const Matrix& Y) {
   return y;
 }
 
-// Hyper-parameters on (Xh, Yh), then the posterior on (X, Y); sigmas tried: 0.3, 1, 3, 10.
+// Hyper-parameters on (Xh, Yh), then the posterior on (X, Y); sigmas tried: 1, 3, 10, 30, 100.
 inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Matrix& Y,
                   bool friction, bool per_link) {
   const int n = static_cast<int>(Y.cols());
@@ -254,7 +263,7 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
     best.friction.rms_qd[j] = std::max(std::sqrt(X.col(n + j).squaredNorm() / X.rows()), 1e-3);
   }
   best.log_evidence = -INFINITY;
-  for (double sigma : {0.3, 1.0, 3.0, 10.0}) {
+  for (double sigma : {1.0, 3.0, 10.0, 30.0, 100.0}) {
     const double theta = 1.0 / (1.0 + sigma);
     std::vector<Matrix> parts;
     Matrix F;
@@ -292,9 +301,8 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
   }
   std::vector<Matrix> parts;
   Matrix F;
-  Gram(n, best.theta, X, X, per_link, true, best.friction, &parts, &F);
-  Matrix C = Combine(parts, best.weights, F);
-  parts.clear();
+  Gram(n, best.theta, X, X, per_link, true, best.friction, &parts, &F, &best.weights);
+  Matrix C = std::move(parts[0]);
   for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += best.noise[r % n] * best.noise[r % n];
   best.llt.compute(C);
   best.alpha = best.llt.solve(Stack(Y));
@@ -311,12 +319,13 @@ inline void Predict(const Fitted& f, const Matrix& Z, int stride, Matrix* mean, 
   std::vector<Matrix> parts;
   Matrix F;
   for (Eigen::Index s = 0; s < Z.rows(); ++s) {
-    Gram(n, f.theta, Z.row(s), f.X, f.per_link, false, f.friction, &parts, &F);
-    const Matrix Ks = Combine(parts, f.weights, F);  // N x (m N)
+    Gram(n, f.theta, Z.row(s), f.X, f.per_link, false, f.friction, &parts, &F, &f.weights);
+    const Matrix Ks = parts[0];  // N x (m N)
     mean->row(s) = (Ks * f.alpha).transpose();
     if (s % stride == 0) {
-      Gram(n, f.theta, Z.row(s), Z.row(s), f.per_link, false, f.friction, &parts, &F);
-      const Matrix Kss = Combine(parts, f.weights, F);
+      Gram(n, f.theta, Z.row(s), Z.row(s), f.per_link, false, f.friction, &parts, &F,
+           &f.weights);
+      const Matrix Kss = parts[0];
       const Matrix v = f.llt.matrixL().solve(Ks.transpose());
       const Matrix cov = Kss - v.transpose() * v;
       for (int i = 0; i < n; ++i) {
