@@ -5,7 +5,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "feature/trig_tensor.h"
 #include "structgp/core/validate.h"
 
 namespace structgp {
@@ -39,14 +38,7 @@ std::unique_ptr<Kernel> PolChainKernel::WithParameters(const ConstVectorRef& the
 }
 
 void PolChainKernel::UpdateCache() {
-  const internal::PolShape s = internal::MakePolShape(parameters_[kLogSigma], num_joints_);
-  theta_ = s.theta;
-  d_theta_ = -s.theta * s.one_minus_theta;
-  c_psi_ = s.c_psi;
-  d_c_psi_ = s.c_psi * s.dlog_c_psi;
-  scale_inertial_ = std::exp(2.0 * parameters_[kLogScaleInertial]);
-  scale_coriolis_ = std::exp(2.0 * parameters_[kLogScaleCoriolis]);
-  scale_gravity_ = std::exp(2.0 * parameters_[kLogScaleGravity]);
+  k_ = internal::PolConstants(parameters_, num_joints_, /*include_gravity=*/true);
 }
 
 PolKernelTerms PolChainKernel::Compute(const ConstVectorRef& a, const ConstVectorRef& b,
@@ -56,7 +48,7 @@ PolKernelTerms PolChainKernel::Compute(const ConstVectorRef& a, const ConstVecto
   const int J = output_joint_ - 1;  // 0-based
   const double* pa = a.data();
   const double* pb = b.data();
-  const double inv_one_plus_theta = 1.0 / (1.0 + theta_);
+  const double inv_one_plus_theta = 1.0 / (1.0 + k_.theta);
   // Backward over the joints: T = prod_{l > current} f_l^2 (the suffix product S of the
   // header, 0-based), dT = dT/dtheta; A, B = suffix sums of a_k, b_k.
   double T = 1.0, dT = 0.0;
@@ -86,7 +78,7 @@ PolKernelTerms PolChainKernel::Compute(const ConstVectorRef& a, const ConstVecto
       d_coriolis += A * A * dT;
     }
     const double c = std::cos(pa[l] - pb[l]);
-    const double t = theta_ * c;
+    const double t = k_.theta * c;
     const double f = (1.0 + t) * inv_one_plus_theta;
     const double df = (c - 1.0) * inv_one_plus_theta * inv_one_plus_theta;
     dT = 2.0 * f * df * T + f * f * dT;
@@ -97,14 +89,14 @@ PolKernelTerms PolChainKernel::Compute(const ConstVectorRef& a, const ConstVecto
   }
   const double inv_n = 1.0 / n;
   PolKernelTerms terms;
-  terms.inertial = scale_inertial_ * inertial * inv_n;
-  terms.coriolis = scale_coriolis_ * theta_ * coriolis * inv_n * inv_n;
-  terms.gravity = scale_gravity_ * c_psi_ * e;
+  terms.inertial = k_.scale_inertial * inertial * inv_n;
+  terms.coriolis = k_.scale_coriolis * k_.theta * coriolis * inv_n * inv_n;
+  terms.gravity = k_.scale_gravity * k_.c_psi * e;
   if (d_log_sigma != nullptr) {
-    const double di = scale_inertial_ * d_inertial * inv_n;
-    const double dc = scale_coriolis_ * (coriolis + theta_ * d_coriolis) * inv_n * inv_n;
-    const double dg = d_c_psi_ * e + c_psi_ * dr * d_theta_;
-    *d_log_sigma = d_theta_ * (di + dc) + scale_gravity_ * dg;
+    const double di = k_.scale_inertial * d_inertial * inv_n;
+    const double dc = k_.scale_coriolis * (coriolis + k_.theta * d_coriolis) * inv_n * inv_n;
+    const double dg = k_.d_c_psi * e + k_.c_psi * dr * k_.d_theta;
+    *d_log_sigma = k_.d_theta * (di + dc) + k_.scale_gravity * dg;
   }
   return terms;
 }
@@ -124,10 +116,8 @@ void PolChainKernel::Gradient(const ConstVectorRef& a, const ConstVectorRef& b,
   assert(dk.size() == num_parameters());
   double d_log_sigma = 0.0;
   const PolKernelTerms t = Compute(a, b, &d_log_sigma);
-  dk[kLogSigma] = d_log_sigma;
-  dk[kLogScaleInertial] = 2.0 * t.inertial;
-  dk[kLogScaleCoriolis] = 2.0 * t.coriolis;
-  dk[kLogScaleGravity] = 2.0 * t.gravity;
+  internal::PolGradient(t.inertial, t.coriolis, t.gravity, d_log_sigma,
+                        /*include_gravity=*/true, dk);
 }
 
 std::unique_ptr<Kernel> PolChainKernel::Clone() const {

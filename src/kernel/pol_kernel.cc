@@ -47,16 +47,21 @@ void PolFormulaKernel::AssignParameters(const ConstVectorRef& theta) {
   UpdateCache();
 }
 
+namespace internal {
+PolConstants::PolConstants(const Vector& parameters, int num_joints, bool include_gravity) {
+  const PolShape s = MakePolShape(parameters[0], num_joints);
+  theta = s.theta;
+  d_theta = -s.theta * s.one_minus_theta;
+  c_psi = s.c_psi;
+  d_c_psi = s.c_psi * s.dlog_c_psi;
+  scale_inertial = std::exp(2.0 * parameters[1]);
+  scale_coriolis = std::exp(2.0 * parameters[2]);
+  scale_gravity = include_gravity ? std::exp(2.0 * parameters[3]) : 0.0;
+}
+}  // namespace internal
+
 void PolFormulaKernel::UpdateCache() {
-  const internal::PolShape s = internal::MakePolShape(parameters_[kLogSigma], num_joints_);
-  theta_ = s.theta;
-  d_theta_ = -s.theta * s.one_minus_theta;
-  c_psi_ = s.c_psi;
-  d_c_psi_ = s.c_psi * s.dlog_c_psi;
-  scale_inertial_ = std::exp(2.0 * parameters_[kLogScaleInertial]);
-  scale_coriolis_ = std::exp(2.0 * parameters_[kLogScaleCoriolis]);
-  scale_gravity_ =
-      options_.include_gravity ? std::exp(2.0 * parameters_[kLogScaleGravity]) : 0.0;
+  k_ = internal::PolConstants(parameters_, num_joints_, options_.include_gravity);
 }
 
 PolKernelTerms PolFormulaKernel::Compute(const ConstVectorRef& a, const ConstVectorRef& b,
@@ -81,24 +86,24 @@ PolKernelTerms PolFormulaKernel::Compute(const ConstVectorRef& a, const ConstVec
   double dr = 0.0;
   for (int j = 0; j < n; ++j) {
     const double c = std::cos(pa[j] - pb[j]);
-    const double t = theta_ * c;
+    const double t = k_.theta * c;
     dr = dr * (1.0 + t) + r * c;
     r *= 1.0 + t;
     e += t + e * t;
   }
-  const double psi = c_psi_ * r;  // k_psi_sigma, eq. 18
+  const double psi = k_.c_psi * r;  // k_psi_sigma, eq. 18
   const double psi2 = psi * psi;
   PolKernelTerms terms;
-  terms.inertial = scale_inertial_ * k_qdd * psi2;
-  terms.coriolis = scale_coriolis_ * theta_ * k_qdqd * psi2;
-  terms.gravity = scale_gravity_ * c_psi_ * e;  // k_psi_sigma - c_psi
+  terms.inertial = k_.scale_inertial * k_qdd * psi2;
+  terms.coriolis = k_.scale_coriolis * k_.theta * k_qdqd * psi2;
+  terms.gravity = k_.scale_gravity * k_.c_psi * e;  // k_psi_sigma - c_psi
   if (d_log_sigma != nullptr) {
-    const double d_r = dr * d_theta_;  // dR / d log sigma
-    const double d_psi = d_c_psi_ * r + c_psi_ * d_r;
-    const double d_gravity = d_c_psi_ * e + c_psi_ * d_r;
-    *d_log_sigma = scale_inertial_ * k_qdd * 2.0 * psi * d_psi +
-                   scale_coriolis_ * k_qdqd * (d_theta_ * psi2 + theta_ * 2.0 * psi * d_psi) +
-                   scale_gravity_ * d_gravity;
+    const double d_r = dr * k_.d_theta;  // dR / d log sigma
+    const double d_psi = k_.d_c_psi * r + k_.c_psi * d_r;
+    const double d_gravity = k_.d_c_psi * e + k_.c_psi * d_r;
+    *d_log_sigma = k_.scale_inertial * k_qdd * 2.0 * psi * d_psi +
+                   k_.scale_coriolis * k_qdqd * (k_.d_theta * psi2 + k_.theta * 2.0 * psi * d_psi) +
+                   k_.scale_gravity * d_gravity;
   }
   return terms;
 }
@@ -118,11 +123,8 @@ void PolFormulaKernel::Gradient(const ConstVectorRef& a, const ConstVectorRef& b
   assert(dk.size() == num_parameters());
   double d_log_sigma = 0.0;
   const PolKernelTerms t = Compute(a, b, &d_log_sigma);
-  // d (s^2 k_b) / d log s = 2 s^2 k_b.
-  dk[kLogSigma] = d_log_sigma;
-  dk[kLogScaleInertial] = 2.0 * t.inertial;
-  dk[kLogScaleCoriolis] = 2.0 * t.coriolis;
-  if (options_.include_gravity) dk[kLogScaleGravity] = 2.0 * t.gravity;
+  internal::PolGradient(t.inertial, t.coriolis, t.gravity, d_log_sigma,
+                        options_.include_gravity, dk);
 }
 
 std::unique_ptr<Kernel> PolFormulaKernel::Clone() const {

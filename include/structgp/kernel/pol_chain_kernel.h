@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "structgp/core/types.h"
+#include "structgp/internal/pol_constants.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/kernel/pol_kernel.h"
 
@@ -73,13 +74,7 @@ class PolChainKernel : public Kernel {
   int num_joints_;
   int output_joint_;  // 1-based
   Vector parameters_;
-  double theta_ = 0.5;
-  double d_theta_ = 0.0;  // d theta / d log sigma
-  double c_psi_ = 1.0;    // (1 + theta)^-N
-  double d_c_psi_ = 0.0;  // d c_psi / d log sigma
-  double scale_inertial_ = 1.0;
-  double scale_coriolis_ = 1.0;
-  double scale_gravity_ = 1.0;
+  internal::PolConstants k_;  // cached from the parameters
 };
 
 }  // namespace structgp

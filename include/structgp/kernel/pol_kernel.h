@@ -38,12 +38,14 @@
 
 #include "structgp/core/types.h"
 #include "structgp/feature/pol_feature_map.h"
+#include "structgp/internal/pol_constants.h"
 #include "structgp/kernel/kernel.h"
 
 namespace structgp {
 
 /// The three terms of k_pol at one pair of states, each with its block scale applied. Their
-/// sum is PolFormulaKernel::Evaluate. gravity is 0 without the gravity block.
+/// sum is PolFormulaKernel::Evaluate (and PolChainKernel::Evaluate). gravity is 0 without the
+/// gravity block.
 struct PolKernelTerms {
   double inertial = 0.0;
   double coriolis = 0.0;
@@ -98,14 +100,7 @@ class PolFormulaKernel : public Kernel {
   PolOptions options_;
   Vector parameters_;  // num_parameters()
 
-  // Cached from the parameters.
-  double theta_ = 0.5;
-  double d_theta_ = 0.0;       // d theta / d log sigma = -theta (1 - theta)
-  double c_psi_ = 1.0;         // (1 + theta)^-N
-  double d_c_psi_ = 0.0;       // d c_psi / d log sigma
-  double scale_inertial_ = 1.0;  // s_I^2
-  double scale_coriolis_ = 1.0;  // s_C^2
-  double scale_gravity_ = 1.0;   // s_G^2 (0 without the gravity block)
+  internal::PolConstants k_;  // cached from the parameters
 };
 
 }  // namespace structgp
