@@ -18,8 +18,11 @@
 // log w_V (or, per link, one pair for each link's energies) and one log noise std per joint, at
 // the best of a few sigma.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <ceres/ceres.h>
@@ -36,10 +39,13 @@ namespace lagrangian_prototype {
 // With last < n - 1: the energies of link `last` (0-based) alone, a chain's link i having
 // kinetic energy in qd_1..qd_i and q_2..q_i, potential energy in q_1..q_i (the serial-chain
 // prior: one weight per link).
+constexpr int kMaxJoints = 64;  // the per-angle scratch below
+
 inline void Blocks(int n, double theta, const double* x, const double* y, int last, double* kin,
                    double* pot) {
   // Per-angle factors and their log-derivatives.
-  double r[64], rr[64], rho[64], rhorho[64], g[64], h[64];
+  double r[kMaxJoints], rr[kMaxJoints], rho[kMaxJoints], rhorho[kMaxJoints], g[kMaxJoints],
+      h[kMaxJoints];
   const double inv = 1.0 / (1.0 + theta);
   for (int l = 0; l < n; ++l) {
     const double d = x[l] - y[l];
@@ -76,7 +82,7 @@ inline void Blocks(int n, double theta, const double* x, const double* y, int la
     Ps[static_cast<size_t>(j)] = P;
     P *= g[j];
   }
-  double grad[64], gradp[64], aH[64], Hap[64];
+  double grad[kMaxJoints], gradp[kMaxJoints], aH[kMaxJoints], Hap[kMaxJoints];
   for (int j = 0; j <= last; ++j) {
     const double Pj = Ps[static_cast<size_t>(j)];
     double A = 0.0, Ap = 0.0, S = 0.0;
@@ -191,7 +197,7 @@ struct Fitted {
   double theta = 0.5;
   Vector weights;  // one per part
   Vector noise;    // per joint, std
-  double log_evidence = 0.0;
+  double log_evidence = 0.0;  // without its constant -(m N / 2) log(2 pi)
   Matrix X;        // training states
   Vector alpha;    // C^{-1} y
   Eigen::LLT<Matrix> llt;
@@ -252,6 +258,7 @@ inline Vector Stack(const Matrix& Y) {
 inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Matrix& Y,
                   bool friction, bool per_link) {
   const int n = static_cast<int>(Y.cols());
+  if (n > kMaxJoints) throw std::invalid_argument("lagk: at most 64 joints");
   const Vector yh = Stack(Yh);
   Fitted best;
   best.per_link = per_link;
@@ -290,6 +297,7 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
                 static_cast<int>(summary.iterations.size()),
                 summary.termination_type == ceres::CONVERGENCE ? "converged" : "stopped");
     std::fflush(stdout);
+    if (!summary.IsSolutionUsable()) continue;
     if (-summary.final_cost > best.log_evidence) {
       best.log_evidence = -summary.final_cost;
       best.theta = theta;
@@ -298,6 +306,9 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
       best.noise.resize(n);
       for (int j = 0; j < n; ++j) best.noise[j] = std::exp(p[static_cast<size_t>(P + j)]);
     }
+  }
+  if (best.weights.size() == 0) {
+    throw std::runtime_error("lagk: type-II maximum likelihood failed at every sigma");
   }
   std::vector<Matrix> parts;
   Matrix F;
@@ -311,9 +322,10 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
 }
 
 // Mean (m x N) at the states Z, and the noisy predictive std at every `stride`-th row (other
-// rows: NaN).
+// rows: NaN), stride >= 1.
 inline void Predict(const Fitted& f, const Matrix& Z, int stride, Matrix* mean, Matrix* noisy_std) {
   const int n = static_cast<int>(f.noise.size());
+  stride = std::max(stride, 1);
   mean->resize(Z.rows(), n);
   noisy_std->setConstant(Z.rows(), n, std::nan(""));
   std::vector<Matrix> parts;
