@@ -77,14 +77,14 @@ inline void Blocks(int n, double theta, const double* x, const double* y, int la
   }
   // Kinetic: for each row j (0-based), P = prod_{l > j} g_l.
   double P = 1.0;
-  std::vector<double> Ps(static_cast<size_t>(n));
+  double Ps[kMaxJoints];
   for (int j = last; j >= 0; --j) {
-    Ps[static_cast<size_t>(j)] = P;
+    Ps[j] = P;
     P *= g[j];
   }
   double grad[kMaxJoints], gradp[kMaxJoints], aH[kMaxJoints], Hap[kMaxJoints];
   for (int j = 0; j <= last; ++j) {
-    const double Pj = Ps[static_cast<size_t>(j)];
+    const double Pj = Ps[j];
     double A = 0.0, Ap = 0.0, S = 0.0;
     for (int l = j + 1; l <= last; ++l) {
       A += a[l] * r[l];
