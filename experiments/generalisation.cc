@@ -4,7 +4,8 @@
 //   generalisation [--robots=two_link,three_link,puma560,panda] [--cases=none,friction,payload]
 //                  [--models=reference,rbd+fri,rbd+fri/off30,lag+fri,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
-//                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--out=FILE.csv]
+//                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--lagk-inducing=0]
+//                  [--lagk-sigmas=1,3,10,30,100] [--out=FILE.csv]
 //                  [--quick] [--check]
 //
 // Per robot and case: a slow training log (--train-vias via points in --train-seconds, seed 1,
@@ -22,7 +23,9 @@
 // likelihood). Variants of kernel models: "/joint" one GP per joint with its own
 // hyper-parameters, "/chain" the same with joint J's PolChainKernel for pol, "/chain1" joint 1's
 // on every joint. "lagk" (lagrangian_kernel_gp.h) is a dense prototype of the Euler-Lagrange
-// kernel (one GP for all joints), "/link" with one weight per link's energies.
+// kernel (one GP for all joints), "/link" with one weight per link's energies; its posterior is
+// exact on --lagk-rows rows or, with --lagk-inducing=P, the DTC approximation through P
+// inducing states on --lagk-rows rows (hyper-parameters on --lagk-hyper-rows either way).
 // rbd and rbd+pol use the robot's URDF (armature not in it); "/off30" centres rbd's
 // prior (rbd+pol: its prior mean) on inertial parameters each off by up to +-30%.
 //
@@ -84,6 +87,8 @@ struct Flags {
   int train_rows = 0;  // 0: all
   int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
   int lagk_hyper_rows = 400;  // and its ML-II rows
+  int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
+  std::vector<std::string> lagk_sigmas = {"1", "3", "10", "30", "100"};
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -363,7 +368,8 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
 }
 
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
-             const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows) {
+             const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows,
+             const lagrangian_prototype::Options& lagk_options) {
   Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
   const auto start = std::chrono::steady_clock::now();
   std::vector<Prediction> predictions;
@@ -378,13 +384,17 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     row.model = std::string(friction ? "lagk+fri" : "lagk") + (per_link ? "/link" : "");
     const lagrangian_prototype::Fitted fitted = lagrangian_prototype::Fit(
         SelectRows(c.train.X, hyper_rows), SelectRows(c.train.Y, hyper_rows),
-        SelectRows(c.train.X, rows), SelectRows(c.train.Y, rows), friction, per_link);
+        SelectRows(c.train.X, rows), SelectRows(c.train.Y, rows), friction, per_link,
+        lagk_options);
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     row.rows = m;
     row.note = Format("one GP for every joint, Euler-Lagrange kernel (sigma %.3g, weights %s; "
-                      "ML-II on %d rows)",
+                      "ML-II on %d rows%s)",
                       1.0 / fitted.theta - 1.0, Join(fitted.weights, "%.2g").c_str(),
-                      static_cast<int>(hyper_rows.size()));
+                      static_cast<int>(hyper_rows.size()),
+                      fitted.dtc ? Format("; DTC, %d inducing states",
+                                          static_cast<int>(fitted.X.rows())).c_str()
+                                 : "");
     for (const auto& t : c.tests) {
       Prediction p;
       lagrangian_prototype::Predict(fitted, t.X, 10, &p.mean, &p.noisy_std);
@@ -471,6 +481,22 @@ int Run(const Flags& flags, int argc, char** argv) {
     f.train_vias = 20;
     f.tests = 1;
   }
+  lagrangian_prototype::Options lagk_options;
+  lagk_options.inducing = f.lagk_inducing;
+  lagk_options.sigmas.clear();
+  for (const std::string& text : f.lagk_sigmas) {
+    std::size_t used = 0;
+    double sigma = 0.0;
+    try {
+      sigma = std::stod(text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != text.size() || !(sigma > 0.0)) {
+      throw std::invalid_argument("--lagk-sigmas: expected positive numbers, got '" + text + "'");
+    }
+    lagk_options.sigmas.push_back(sigma);
+  }
   std::vector<Row> rows;
   std::printf("| robot | case | model | test RMS / noise per joint | max | mean nMSE | 2σ coverage "
               "per joint | rows | fit s | hyper-parameters |\n|---|---|---|---|---|---|---|---|---|---|\n");
@@ -484,7 +510,7 @@ int Run(const Flags& flags, int argc, char** argv) {
       const Case c = MakeCase(robot, case_name, f);
       for (const std::string& model : f.models) {
         Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows,
-                           f.lagk_hyper_rows);
+                           f.lagk_hyper_rows, lagk_options);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
                     row.kase.c_str(), row.model.c_str(),
                     row.ratio.size() ? Join(row.ratio, "%.3g").c_str() : "-",
@@ -563,6 +589,11 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--lagk-hyper-rows", &f.lagk_hyper_rows,
                     "rows of lagk's type-II maximum likelihood")
       ->check(structgp::AtLeast(2));
+  structgp::AddFlag(&app, "--lagk-inducing", &f.lagk_inducing,
+                    "lagk's posterior through this many inducing states (DTC; 0: exact)")
+      ->check(structgp::AtLeast(0));
+  structgp::AddListFlag(&app, "--lagk-sigmas", &f.lagk_sigmas,
+                        "the sigma grid of lagk's type-II maximum likelihood");
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));

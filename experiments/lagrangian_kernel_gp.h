@@ -16,7 +16,9 @@
 // and Cov(tau_i(x), tau_i'(x')) = sum_{j<=k} L_i L'_i' k_j + w_V d_i d'_i' k_V.
 // Hyper-parameters by type-II maximum likelihood (Ceres LBFGS, analytic gradient): log w_M,
 // log w_V (or, per link, one pair for each link's energies) and one log noise std per joint, at
-// the best of a few sigma.
+// the best of a few sigma. The posterior is exact on its rows, or, with inducing states, the
+// deterministic training conditional (DTC) on every row: the torques at p inducing states
+// Z (p N outputs) carry the posterior, O(m N (p N)^2) instead of O((m N)^3).
 
 #include <algorithm>
 #include <cmath>
@@ -191,6 +193,11 @@ inline Matrix Combine(const std::vector<Matrix>& parts, const Vector& w, const M
   return C;
 }
 
+struct Options {
+  std::vector<double> sigmas = {1.0, 3.0, 10.0, 30.0, 100.0};  // theta = 1 / (1 + sigma)
+  int inducing = 0;  // > 0: DTC posterior on this many evenly spaced training states
+};
+
 struct Fitted {
   Friction friction;
   bool per_link = false;
@@ -198,9 +205,11 @@ struct Fitted {
   Vector weights;  // one per part
   Vector noise;    // per joint, std
   double log_evidence = 0.0;  // without its constant -(m N / 2) log(2 pi)
-  Matrix X;        // training states
-  Vector alpha;    // C^{-1} y
-  Eigen::LLT<Matrix> llt;
+  Matrix X;        // training states (exact) or inducing states (DTC)
+  Vector alpha;    // exact: C^{-1} y; DTC: L^-T B^-1 V S^-1/2 y
+  Eigen::LLT<Matrix> llt;  // exact: C; DTC: K_ZZ = L L^T
+  bool dtc = false;
+  Eigen::LLT<Matrix> llt_b;  // DTC: B = I + V V^T, V = L^-1 K_ZX S^-1/2 (S: noise variances)
 };
 
 // -log evidence of y (stacked state-major) and its gradient in (log w_part..., log noise_j).
@@ -254,9 +263,9 @@ inline Vector Stack(const Matrix& Y) {
   return y;
 }
 
-// Hyper-parameters on (Xh, Yh), then the posterior on (X, Y); sigmas tried: 1, 3, 10, 30, 100.
+// Hyper-parameters on (Xh, Yh), then the posterior on (X, Y).
 inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Matrix& Y,
-                  bool friction, bool per_link) {
+                  bool friction, bool per_link, const Options& options = Options()) {
   const int n = static_cast<int>(Y.cols());
   if (n > kMaxJoints) throw std::invalid_argument("lagk: at most 64 joints");
   const Vector yh = Stack(Yh);
@@ -270,7 +279,9 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
     best.friction.rms_qd[j] = std::max(std::sqrt(X.col(n + j).squaredNorm() / X.rows()), 1e-3);
   }
   best.log_evidence = -INFINITY;
-  for (double sigma : {1.0, 3.0, 10.0, 30.0, 100.0}) {
+  if (options.sigmas.empty()) throw std::invalid_argument("lagk: no sigma to try");
+  for (double sigma : options.sigmas) {
+    if (!(sigma > 0.0)) throw std::invalid_argument("lagk: sigma must be > 0");
     const double theta = 1.0 / (1.0 + sigma);
     std::vector<Matrix> parts;
     Matrix F;
@@ -312,6 +323,38 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
   }
   std::vector<Matrix> parts;
   Matrix F;
+  if (options.inducing > 0 && options.inducing < X.rows()) {
+    // DTC on every row: K_ZZ = L L^T (a relative jitter of 1e-8), V = L^-1 K_ZX S^-1/2,
+    // B = I + V V^T; mean weights alpha = L^-T B^-1 V S^-1/2 y.
+    const int p = options.inducing;
+    Matrix Z(p, X.cols());
+    for (int r = 0; r < p; ++r) {
+      Z.row(r) = X.row(static_cast<Eigen::Index>((static_cast<double>(r) + 0.5) * X.rows() / p));
+    }
+    Gram(n, best.theta, Z, Z, per_link, true, best.friction, &parts, &F, &best.weights);
+    Matrix Kzz = std::move(parts[0]);
+    const double jitter = 1e-8 * Kzz.diagonal().mean();
+    Kzz.diagonal().array() += jitter;
+    best.llt.compute(Kzz);
+    if (best.llt.info() != Eigen::Success) throw std::runtime_error("lagk: K_ZZ not positive");
+    Gram(n, best.theta, X, Z, per_link, false, best.friction, &parts, &F, &best.weights);
+    Matrix V = parts[0].transpose();  // (p N) x (m N)
+    parts.clear();
+    Vector ys = Stack(Y);
+    for (Eigen::Index r = 0; r < V.cols(); ++r) {
+      V.col(r) /= best.noise[r % n];
+      ys[r] /= best.noise[r % n];
+    }
+    best.llt.matrixL().solveInPlace(V);
+    Matrix B = Matrix::Identity(V.rows(), V.rows());
+    B.selfadjointView<Eigen::Lower>().rankUpdate(V);
+    best.llt_b.compute(B);  // reads the lower triangle
+    if (best.llt_b.info() != Eigen::Success) throw std::runtime_error("lagk: B not positive");
+    best.alpha = best.llt.matrixU().solve(best.llt_b.solve(V * ys));
+    best.X = Z;
+    best.dtc = true;
+    return best;
+  }
   Gram(n, best.theta, X, X, per_link, true, best.friction, &parts, &F, &best.weights);
   Matrix C = std::move(parts[0]);
   for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += best.noise[r % n] * best.noise[r % n];
@@ -339,7 +382,11 @@ inline void Predict(const Fitted& f, const Matrix& Z, int stride, Matrix* mean, 
            &f.weights);
       const Matrix Kss = parts[0];
       const Matrix v = f.llt.matrixL().solve(Ks.transpose());
-      const Matrix cov = Kss - v.transpose() * v;
+      Matrix cov = Kss - v.transpose() * v;
+      if (f.dtc) {  // + K_*Z (K_ZZ + K_ZX S^-1 K_XZ)^-1 K_Z* = |L_B^-1 v|^2
+        const Matrix w = f.llt_b.matrixL().solve(v);
+        cov += w.transpose() * w;
+      }
       for (int i = 0; i < n; ++i) {
         (*noisy_std)(s, i) = std::sqrt(std::max(cov(i, i), 0.0) + f.noise[i] * f.noise[i]);
       }
