@@ -88,7 +88,7 @@ struct Flags {
   int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
   int lagk_hyper_rows = 400;  // and its ML-II rows
   int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
-  std::vector<std::string> lagk_sigmas = {"1", "3", "10", "30", "100"};
+  std::vector<double> lagk_sigmas = lagrangian_prototype::Options().sigmas;
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -483,20 +483,7 @@ int Run(const Flags& flags, int argc, char** argv) {
   }
   lagrangian_prototype::Options lagk_options;
   lagk_options.inducing = f.lagk_inducing;
-  lagk_options.sigmas.clear();
-  for (const std::string& text : f.lagk_sigmas) {
-    std::size_t used = 0;
-    double sigma = 0.0;
-    try {
-      sigma = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != text.size() || !(sigma > 0.0)) {
-      throw std::invalid_argument("--lagk-sigmas: expected positive numbers, got '" + text + "'");
-    }
-    lagk_options.sigmas.push_back(sigma);
-  }
+  lagk_options.sigmas = f.lagk_sigmas;
   std::vector<Row> rows;
   std::printf("| robot | case | model | test RMS / noise per joint | max | mean nMSE | 2σ coverage "
               "per joint | rows | fit s | hyper-parameters |\n|---|---|---|---|---|---|---|---|---|---|\n");
@@ -592,8 +579,10 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--lagk-inducing", &f.lagk_inducing,
                     "lagk's posterior through this many inducing states (DTC; 0: exact)")
       ->check(structgp::AtLeast(0));
-  structgp::AddListFlag(&app, "--lagk-sigmas", &f.lagk_sigmas,
-                        "the sigma grid of lagk's type-II maximum likelihood");
+  structgp::AddFlag(&app, "--lagk-sigmas", &f.lagk_sigmas,
+                    "the sigma grid of lagk's type-II maximum likelihood")
+      ->delimiter(',')
+      ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));
