@@ -337,8 +337,9 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
     Kzz.diagonal().array() += jitter;
     best.llt.compute(Kzz);
     if (best.llt.info() != Eigen::Success) throw std::runtime_error("lagk: K_ZZ not positive");
-    Gram(n, best.theta, X, Z, per_link, false, best.friction, &parts, &F, &best.weights);
-    Matrix V = parts[0].transpose();  // (p N) x (m N)
+    // K_ZX directly (the kernel is symmetric), not K_XZ and a transposed copy of it.
+    Gram(n, best.theta, Z, X, per_link, false, best.friction, &parts, &F, &best.weights);
+    Matrix V = std::move(parts[0]);  // (p N) x (m N)
     parts.clear();
     Vector ys = Stack(Y);
     for (Eigen::Index r = 0; r < V.cols(); ++r) {
