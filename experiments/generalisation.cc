@@ -390,7 +390,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     row.rows = m;
     row.note = Format("one GP for every joint, Euler-Lagrange kernel (sigma %.3g, weights %s; "
                       "ML-II on %d rows%s)",
-                      1.0 / fitted.theta - 1.0, Join(fitted.weights, "%.2g").c_str(),
+                      fitted.sigma, Join(fitted.weights, "%.2g").c_str(),
                       static_cast<int>(hyper_rows.size()),
                       fitted.dtc ? Format("; DTC, %d inducing states",
                                           static_cast<int>(fitted.X.rows())).c_str()

@@ -1,19 +1,12 @@
 #ifndef STRUCTGP_EXPERIMENTS_LAGRANGIAN_KERNEL_GP_H_
 #define STRUCTGP_EXPERIMENTS_LAGRANGIAN_KERNEL_GP_H_
 
-// A prototype, for measurement only: the Lagrangian structure in kernel form (one GP on the
-// entries of M(q) and on V(q), the torque kernel by the Euler-Lagrange operator applied to both
+// A prototype, for measurement only: a GP on the joint torques with the library's
+// EulerLagrangeKernel (structgp/kernel/euler_lagrange_kernel.h: a GP prior on each link's
+// kinetic and potential energy, the torque kernel by the Euler-Lagrange operator on both
 // arguments), so that one GP explains every joint. No kinematic parameters. Dense, O((m N)^3).
-//
-// Prior: independent GPs M_jk (j <= k) with k_j(q, q') = w_M prod_{l > j} g_l (g_l = f_l^2,
-// f_l = (1 + theta cos(q_l - q'_l)) / (1 + theta): degree <= 2 in each angle, free of
-// q_1..q_j, docs/feature_maps.md section 5a), and V with w_V prod_l f_l (degree 1). Then
-//   tau_i = sum_k M_ik qdd_k + sum_{k,l} (d_l M_ik - 1/2 d_i M_kl) qd_k qd_l + d_i V,
-// linear in the functions: tau_i = sum_{j<=k} L_i^{jk} M_jk + d_i V with
-//   L_i^{jk} f = alpha f + u (qd . grad f) - gamma d_i f,
-//   alpha = [i=j] qdd_k + [i=k, j!=k] qdd_j,  u = [i=j] qd_k + [i=k, j!=k] qd_j,
-//   gamma = c qd_j qd_k (c = 1/2 on the diagonal, 1 off it),
-// and Cov(tau_i(x), tau_i'(x')) = sum_{j<=k} L_i L'_i' k_j + w_V d_i d'_i' k_V.
+// Without per_link only link N's parts are used: one kinetic and one potential energy for the
+// whole chain.
 // Hyper-parameters by type-II maximum likelihood (Ceres LBFGS, analytic gradient): log w_M,
 // log w_V (or, per link, one pair for each link's energies) and one log noise std per joint, at
 // the best of a few sigma. The posterior is exact on its rows, or, with inducing states, the
@@ -32,97 +25,10 @@
 #include <Eigen/Core>
 
 #include "structgp/core/types.h"
+#include "structgp/kernel/euler_lagrange_kernel.h"
 
 namespace structgp {
 namespace lagrangian_prototype {
-
-// The N x N blocks of the two kernel parts at one pair of states: kinetic (w_M = 1) and
-// potential (w_V = 1).
-// With last < n - 1: the energies of link `last` (0-based) alone, a chain's link i having
-// kinetic energy in qd_1..qd_i and q_2..q_i, potential energy in q_1..q_i (the serial-chain
-// prior: one weight per link).
-constexpr int kMaxJoints = 64;  // the per-angle scratch below
-
-inline void Blocks(int n, double theta, const double* x, const double* y, int last, double* kin,
-                   double* pot) {
-  // Per-angle factors and their log-derivatives.
-  double r[kMaxJoints], rr[kMaxJoints], rho[kMaxJoints], rhorho[kMaxJoints], g[kMaxJoints],
-      h[kMaxJoints];
-  const double inv = 1.0 / (1.0 + theta);
-  for (int l = 0; l < n; ++l) {
-    const double d = x[l] - y[l];
-    const double c = std::cos(d), s = std::sin(d);
-    const double hl = (1.0 + theta * c) * inv;
-    const double hq = -theta * s * inv;      // d h / d q
-    const double hqq = theta * c * inv;      // d^2 h / d q d q'
-    h[l] = hl;
-    rho[l] = hq / hl;
-    rhorho[l] = hqq / hl;
-    g[l] = hl * hl;
-    const double gq = 2.0 * hl * hq;
-    const double gqq = 2.0 * (-hq * hq + hl * hqq);
-    r[l] = gq / g[l];
-    rr[l] = gqq / g[l];
-  }
-  const double* a = x + n;       // qd
-  const double* ap = y + n;      // qd'
-  const double* b = x + 2 * n;   // qdd
-  const double* bp = y + 2 * n;  // qdd'
-  for (int p = 0; p < n * n; ++p) kin[p] = pot[p] = 0.0;
-  // Potential: d_i d'_i' prod h = Q (-rho_i rho_i' + delta (rhorho_i + rho_i^2)).
-  double Q = 1.0;
-  for (int l = 0; l <= last; ++l) Q *= h[l];
-  for (int i = 0; i <= last; ++i) {
-    for (int k = 0; k <= last; ++k) {
-      pot[i * n + k] = Q * (-rho[i] * rho[k] + (i == k ? rhorho[i] + rho[i] * rho[i] : 0.0));
-    }
-  }
-  // Kinetic: for each row j (0-based), P = prod_{l > j} g_l.
-  double P = 1.0;
-  double Ps[kMaxJoints];
-  for (int j = last; j >= 0; --j) {
-    Ps[j] = P;
-    P *= g[j];
-  }
-  double grad[kMaxJoints], gradp[kMaxJoints], aH[kMaxJoints], Hap[kMaxJoints];
-  for (int j = 0; j <= last; ++j) {
-    const double Pj = Ps[j];
-    double A = 0.0, Ap = 0.0, S = 0.0;
-    for (int l = j + 1; l <= last; ++l) {
-      A += a[l] * r[l];
-      Ap += ap[l] * r[l];
-      S += a[l] * ap[l] * (rr[l] + r[l] * r[l]);
-    }
-    const double D = Pj * A;     // qd . grad k
-    const double Dp = -Pj * Ap;  // qd' . grad' k
-    const double E = Pj * (-A * Ap + S);  // qd^T H qd'
-    for (int l = 0; l < n; ++l) {
-      const bool on = l > j && l <= last;
-      grad[l] = on ? Pj * r[l] : 0.0;
-      gradp[l] = on ? -Pj * r[l] : 0.0;
-      aH[l] = on ? Pj * (-A * r[l] + a[l] * (rr[l] + r[l] * r[l])) : 0.0;
-      Hap[l] = on ? Pj * (-r[l] * Ap + ap[l] * (rr[l] + r[l] * r[l])) : 0.0;
-    }
-    for (int k = j; k <= last; ++k) {
-      const double c = j == k ? 0.5 : 1.0;
-      const double gamma = c * a[j] * a[k], gammap = c * ap[j] * ap[k];
-      for (int i = 0; i < n; ++i) {
-        const double alpha = (i == j ? b[k] : 0.0) + (i == k && j != k ? b[j] : 0.0);
-        const double u = (i == j ? a[k] : 0.0) + (i == k && j != k ? a[j] : 0.0);
-        for (int ip = 0; ip < n; ++ip) {
-          const double alphap = (ip == j ? bp[k] : 0.0) + (ip == k && j != k ? bp[j] : 0.0);
-          const double up = (ip == j ? ap[k] : 0.0) + (ip == k && j != k ? ap[j] : 0.0);
-          const bool hi = i > j && i <= last, hip = ip > j && ip <= last;
-          const double Hii = hi && hip ? Pj * (-r[i] * r[ip] + (i == ip ? rr[i] + r[i] * r[i] : 0.0))
-                                       : 0.0;
-          kin[i * n + ip] += alpha * alphap * Pj + alpha * (up * Dp - gammap * gradp[ip]) +
-                             alphap * (u * D - gamma * grad[i]) + u * up * E -
-                             u * gammap * aH[ip] - up * gamma * Hap[i] + gamma * gammap * Hii;
-        }
-      }
-    }
-  }
-}
 
 // The semi-parametric friction beside it (the "+fri" of the other models): on joint i the
 // bases qd_i, tanh(qd_i / width) and 1, independent, prior std scale_i (1/rms_qd_i for qd_i).
@@ -141,9 +47,10 @@ struct Friction {
 // state * N + i: kinetic then potential, for the whole chain (2 parts) or per link (2 N parts:
 // kinetic of links 1..N, then potential of links 1..N). F: the friction part (prior fixed).
 // With weights: one part, the weighted sum of them all plus F (F is then left empty).
-inline void Gram(int n, double theta, const Matrix& X, const Matrix& Z, bool per_link,
+inline void Gram(int n, double sigma, const Matrix& X, const Matrix& Z, bool per_link,
                  bool symmetric, const Friction& fri, std::vector<Matrix>* parts, Matrix* F,
                  const Vector* weights = nullptr) {
+  const EulerLagrangeKernel kernel(n, sigma);
   const Eigen::Index m = X.rows(), p = Z.rows();
   const int links = per_link ? n : 1;
   const bool combine = weights != nullptr;
@@ -151,22 +58,22 @@ inline void Gram(int n, double theta, const Matrix& X, const Matrix& Z, bool per
   Matrix& Fo = combine ? (*parts)[0] : *F;
   if (combine) F->resize(0, 0);
   else F->setZero(m * n, p * n);
-  std::vector<double> kin(static_cast<size_t>(n * n)), pot(static_cast<size_t>(n * n));
+  Matrix kin(n, n), pot(n, n);
   const Matrix Xt = X.transpose(), Zt = Z.transpose();
   for (Eigen::Index s = 0; s < m; ++s) {
     for (Eigen::Index t = symmetric ? s : 0; t < p; ++t) {
       const double* xs = Xt.col(s).data();
       const double* zt = Zt.col(t).data();
       for (int link = 0; link < links; ++link) {
-        Blocks(n, theta, xs, zt, per_link ? link : n - 1, kin.data(), pot.data());
+        kernel.EvaluateLink(Xt.col(s), Zt.col(t), per_link ? link : n - 1, kin, pot);
         Matrix& K = (*parts)[combine ? 0 : static_cast<size_t>(link)];
         Matrix& V = (*parts)[combine ? 0 : static_cast<size_t>(links + link)];
         const double wk = combine ? (*weights)[link] : 1.0;
         const double wv = combine ? (*weights)[links + link] : 1.0;
         for (int i = 0; i < n; ++i) {
           for (int k = 0; k < n; ++k) {
-            const double kv = kin[static_cast<size_t>(i * n + k)];
-            const double pv = pot[static_cast<size_t>(i * n + k)];
+            const double kv = kin(i, k);
+            const double pv = pot(i, k);
             K(s * n + i, t * n + k) += wk * kv;
             V(s * n + i, t * n + k) += wv * pv;
             if (symmetric && t != s) {
@@ -201,7 +108,7 @@ struct Options {
 struct Fitted {
   Friction friction;
   bool per_link = false;
-  double theta = 0.5;
+  double sigma = 1.0;  // of the kernel's trigonometric factors
   Vector weights;  // one per part
   Vector noise;    // per joint, std
   double log_evidence = 0.0;  // without its constant -(m N / 2) log(2 pi)
@@ -267,7 +174,6 @@ inline Vector Stack(const Matrix& Y) {
 inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Matrix& Y,
                   bool friction, bool per_link, const Options& options = Options()) {
   const int n = static_cast<int>(Y.cols());
-  if (n > kMaxJoints) throw std::invalid_argument("lagk: at most 64 joints");
   const Vector yh = Stack(Yh);
   Fitted best;
   best.per_link = per_link;
@@ -282,10 +188,9 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
   if (options.sigmas.empty()) throw std::invalid_argument("lagk: no sigma to try");
   for (double sigma : options.sigmas) {
     if (!(sigma > 0.0)) throw std::invalid_argument("lagk: sigma must be > 0");
-    const double theta = 1.0 / (1.0 + sigma);
     std::vector<Matrix> parts;
     Matrix F;
-    Gram(n, theta, Xh, Xh, per_link, true, best.friction, &parts, &F);
+    Gram(n, sigma, Xh, Xh, per_link, true, best.friction, &parts, &F);
     const int P = static_cast<int>(parts.size());
     std::vector<double> p(static_cast<size_t>(P + n));
     // Start: every part at the torque's spread, noise 10% of each joint's RMS torque.
@@ -311,7 +216,7 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
     if (!summary.IsSolutionUsable()) continue;
     if (-summary.final_cost > best.log_evidence) {
       best.log_evidence = -summary.final_cost;
-      best.theta = theta;
+      best.sigma = sigma;
       best.weights.resize(P);
       for (int k = 0; k < P; ++k) best.weights[k] = std::exp(p[static_cast<size_t>(k)]);
       best.noise.resize(n);
@@ -331,14 +236,14 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
     for (int r = 0; r < p; ++r) {
       Z.row(r) = X.row(static_cast<Eigen::Index>((static_cast<double>(r) + 0.5) * X.rows() / p));
     }
-    Gram(n, best.theta, Z, Z, per_link, true, best.friction, &parts, &F, &best.weights);
+    Gram(n, best.sigma, Z, Z, per_link, true, best.friction, &parts, &F, &best.weights);
     Matrix Kzz = std::move(parts[0]);
     const double jitter = 1e-8 * Kzz.diagonal().mean();
     Kzz.diagonal().array() += jitter;
     best.llt.compute(Kzz);
     if (best.llt.info() != Eigen::Success) throw std::runtime_error("lagk: K_ZZ not positive");
     // K_ZX directly (the kernel is symmetric), not K_XZ and a transposed copy of it.
-    Gram(n, best.theta, Z, X, per_link, false, best.friction, &parts, &F, &best.weights);
+    Gram(n, best.sigma, Z, X, per_link, false, best.friction, &parts, &F, &best.weights);
     Matrix V = std::move(parts[0]);  // (p N) x (m N)
     parts.clear();
     Vector ys = Stack(Y);
@@ -356,7 +261,7 @@ inline Fitted Fit(const Matrix& Xh, const Matrix& Yh, const Matrix& X, const Mat
     best.dtc = true;
     return best;
   }
-  Gram(n, best.theta, X, X, per_link, true, best.friction, &parts, &F, &best.weights);
+  Gram(n, best.sigma, X, X, per_link, true, best.friction, &parts, &F, &best.weights);
   Matrix C = std::move(parts[0]);
   for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += best.noise[r % n] * best.noise[r % n];
   best.llt.compute(C);
@@ -375,11 +280,11 @@ inline void Predict(const Fitted& f, const Matrix& Z, int stride, Matrix* mean, 
   std::vector<Matrix> parts;
   Matrix F;
   for (Eigen::Index s = 0; s < Z.rows(); ++s) {
-    Gram(n, f.theta, Z.row(s), f.X, f.per_link, false, f.friction, &parts, &F, &f.weights);
+    Gram(n, f.sigma, Z.row(s), f.X, f.per_link, false, f.friction, &parts, &F, &f.weights);
     const Matrix Ks = parts[0];  // N x (m N)
     mean->row(s) = (Ks * f.alpha).transpose();
     if (s % stride == 0) {
-      Gram(n, f.theta, Z.row(s), Z.row(s), f.per_link, false, f.friction, &parts, &F,
+      Gram(n, f.sigma, Z.row(s), Z.row(s), f.per_link, false, f.friction, &parts, &F,
            &f.weights);
       const Matrix Kss = parts[0];
       const Matrix v = f.llt.matrixL().solve(Ks.transpose());

@@ -179,6 +179,54 @@ void LagrangianRegressorMap::Fill(const ConstVectorRef& x, MatrixRef psi, int pa
   }
 }
 
+Vector LagrangianRegressorMap::KernelPriorVariance(double sigma,
+                                                   const ConstVectorRef& part_weights) const {
+  const int N = num_joints_;
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) {
+    throw std::invalid_argument("LagrangianRegressorMap::KernelPriorVariance: sigma must be "
+                                "finite and > 0, got " + std::to_string(sigma));
+  }
+  if (part_weights.size() != 2 * N) {
+    throw std::invalid_argument("LagrangianRegressorMap::KernelPriorVariance: expected " +
+                                std::to_string(2 * N) + " part weights, got " +
+                                std::to_string(part_weights.size()));
+  }
+  for (Eigen::Index p = 0; p < part_weights.size(); ++p) {
+    if (!(part_weights[p] >= 0.0) || !std::isfinite(part_weights[p])) {
+      throw std::invalid_argument("LagrangianRegressorMap::KernelPriorVariance: part weight " +
+                                  std::to_string(p) + " must be finite and >= 0, got " +
+                                  std::to_string(part_weights[p]));
+    }
+  }
+  const double theta = 1.0 / (1.0 + sigma);
+  const double g0 = (1.0 + theta) * (1.0 + theta);
+  const double kinetic_coef[kKineticBases] = {(1.0 + 0.5 * theta * theta) / g0,
+                                              2.0 * theta / g0, 2.0 * theta / g0,
+                                              0.5 * theta * theta / g0, 0.5 * theta * theta / g0};
+  const double potential_coef[kPotentialBases] = {1.0 / (1.0 + theta), theta / (1.0 + theta),
+                                                  theta / (1.0 + theta)};
+  Vector v(dim());
+  for (int k = 0; k < dim(); ++k) {
+    const Param& p = params_[static_cast<size_t>(k)];
+    const bool kinetic = p.a >= 0;
+    const double* coef = kinetic ? kinetic_coef : potential_coef;
+    const double* weight = part_weights.data() + (kinetic ? 0 : N);
+    // Link L' covers the angles first..L'; the parameter's angles past its earliest link are
+    // constant in it, each adding the constant basis's coefficient.
+    const int first = kinetic ? p.a + 1 : 0;
+    const int earliest = link_[static_cast<size_t>(k)];
+    double product = 1.0;
+    for (int l = first; l <= earliest; ++l) product *= coef[p.index[static_cast<size_t>(l)]];
+    double sum = 0.0;
+    for (int link = earliest; link < N; ++link) {
+      if (link > earliest) product *= coef[0];
+      sum += weight[link] * product;
+    }
+    v[k] = sum;
+  }
+  return v;
+}
+
 void LagrangianRegressorMap::Evaluate(const ConstVectorRef& x, MatrixRef psi, Scratch*) const {
   Fill(x, psi, 7);
 }

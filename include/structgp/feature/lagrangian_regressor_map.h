@@ -59,6 +59,16 @@ class LagrangianRegressorMap final : public RegressorMap {
   void EvaluateComponent(int component, const ConstVectorRef& x, MatrixRef psi,
                          Scratch* scratch) const override;
 
+  /// The prior variances (one per parameter) that make this regressor the weight-space form of
+  /// EulerLagrangeKernel(num_joints, sigma) with the given part weights (kinetic 1..N, then
+  /// potential 1..N; >= 0): Psi(x) diag(v) Psi(x')^T = K(x, x'). A parameter whose earliest
+  /// link is L gets sum_{L' >= L} w_L' prod c, the product over its angles of the Fourier
+  /// coefficients of link L''s factors: for g = f^2, (1 + theta^2/2, 2 theta, 2 theta,
+  /// theta^2/2, theta^2/2) / (1 + theta)^2 for the bases 1, cos, sin, cos 2, sin 2; for f,
+  /// (1, theta, theta) / (1 + theta). Throws std::invalid_argument on a bad size, a negative
+  /// weight or sigma <= 0.
+  Vector KernelPriorVariance(double sigma, const ConstVectorRef& part_weights) const;
+
  private:
   struct Param {
     int a = 0, b = 0;  // M_ab (a <= b, 0-based), or a = b = -1 for V
