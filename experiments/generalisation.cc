@@ -22,10 +22,11 @@
 // fitted by the library's workflow with the CLI's defaults (FitModel, type-II maximum
 // likelihood). Variants of kernel models: "/joint" one GP per joint with its own
 // hyper-parameters, "/chain" the same with joint J's PolChainKernel for pol, "/chain1" joint 1's
-// on every joint. "lagk" (lagrangian_kernel_gp.h) is a dense prototype of the Euler-Lagrange
-// kernel (one GP for all joints), "/link" with one weight per link's energies; its posterior is
-// exact on --lagk-rows rows or, with --lagk-inducing=P, the DTC approximation through P
-// inducing states on --lagk-rows rows (hyper-parameters on --lagk-hyper-rows either way).
+// on every joint. "lagk" is the library's EulerLagrangeGP (one GP for all joints on the
+// Euler-Lagrange kernel, FitEulerLagrangeGP), "/link" with one weight per link's energies; its
+// posterior is exact on --lagk-rows rows or, with --lagk-inducing=P, the DTC approximation
+// through P inducing states on --lagk-rows rows (hyper-parameters on --lagk-hyper-rows evenly
+// spaced of them either way).
 // rbd and rbd+pol use the robot's URDF (armature not in it); "/off30" centres rbd's
 // prior (rbd+pol: its prior mean) on inertial parameters each off by up to +-30%.
 //
@@ -39,6 +40,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -49,9 +51,9 @@
 #include <Eigen/QR>
 
 #include "experiment_program.h"
-#include "lagrangian_kernel_gp.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
+#include "structgp/hyper/euler_lagrange_fit.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/internal/text.h"
 #include "structgp/kernel/pol_chain_kernel.h"
@@ -88,7 +90,7 @@ struct Flags {
   int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
   int lagk_hyper_rows = 400;  // and its ML-II rows
   int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
-  std::vector<double> lagk_sigmas = lagrangian_prototype::Options().sigmas;
+  std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -369,35 +371,55 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
 
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
              const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows,
-             const lagrangian_prototype::Options& lagk_options) {
+             const EulerLagrangeGPOptions& lagk_options) {
   Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
   const auto start = std::chrono::steady_clock::now();
   std::vector<Prediction> predictions;
   if (name == "lagk" || name == "lagk+fri" || name == "lagk/link" || name == "lagk+fri/link") {
-    // The Lagrangian kernel prototype (lagrangian_kernel_gp.h) on evenly spaced rows.
+    // One GP on the Euler-Lagrange kernel (hyper/euler_lagrange_fit.h) on evenly spaced rows.
     const int m = std::min(static_cast<int>(c.train.X.rows()), lagk_rows);
     const std::vector<int> rows = EvenlySpacedRows(c.train.X.rows(), m);
-    const std::vector<int> hyper_rows =
-        EvenlySpacedRows(c.train.X.rows(), std::min(m, lagk_hyper_rows));
     const bool friction = c.friction && name.rfind("lagk+fri", 0) == 0;
     const bool per_link = name.find("/link") != std::string::npos;
     row.model = std::string(friction ? "lagk+fri" : "lagk") + (per_link ? "/link" : "");
-    const lagrangian_prototype::Fitted fitted = lagrangian_prototype::Fit(
-        SelectRows(c.train.X, hyper_rows), SelectRows(c.train.Y, hyper_rows),
-        SelectRows(c.train.X, rows), SelectRows(c.train.Y, rows), friction, per_link,
-        lagk_options);
+    EulerLagrangeGPOptions options = lagk_options;
+    options.friction = friction;
+    options.per_link = per_link;
+    options.hyperparameter_rows = std::min(m, lagk_hyper_rows);
+    std::optional<EulerLagrangeGP> gp;
+    const EulerLagrangeGPSummary summary = FitEulerLagrangeGP(
+        SelectRows(c.train.X, rows), SelectRows(c.train.Y, rows), options, &gp);
+    for (size_t k = 0; k < summary.sigmas.size(); ++k) {
+      std::printf("    %s sigma %.2g: log evidence %.6g\n", row.model.c_str(), summary.sigmas[k],
+                  summary.log_evidence_per_sigma[k]);
+    }
+    std::fflush(stdout);
+    if (!gp) throw std::runtime_error(row.model + ": " + summary.message);
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     row.rows = m;
+    const EulerLagrangeGPHyperparameters& h = summary.hyperparameters;
     row.note = Format("one GP for every joint, Euler-Lagrange kernel (sigma %.3g, weights %s; "
                       "ML-II on %d rows%s)",
-                      fitted.sigma, Join(fitted.weights, "%.2g").c_str(),
-                      static_cast<int>(hyper_rows.size()),
-                      fitted.dtc ? Format("; DTC, %d inducing states",
-                                          static_cast<int>(fitted.X.rows())).c_str()
-                                 : "");
+                      h.sigma, Join(h.part_weights, "%.2g").c_str(), summary.hyperparameter_rows,
+                      summary.inducing_states > 0
+                          ? Format("; DTC, %d inducing states", summary.inducing_states).c_str()
+                          : "");
     for (const auto& t : c.tests) {
+      // The mean on every row; the band on every 10th (its cost is a solve per row).
       Prediction p;
-      lagrangian_prototype::Predict(fitted, t.X, 10, &p.mean, &p.noisy_std);
+      if (!IsOk(gp->Predict(t.X, &p.mean))) throw std::runtime_error("lagk: bad test states");
+      const std::vector<int> strided = EvenlySpacedRows(t.X.rows(), (t.X.rows() + 9) / 10);
+      Matrix mean, latent;
+      if (!IsOk(gp->Predict(SelectRows(t.X, strided), &mean, &latent))) {
+        throw std::runtime_error("lagk: bad test states");
+      }
+      p.noisy_std.setConstant(t.X.rows(), h.num_joints(), std::nan(""));
+      for (size_t r = 0; r < strided.size(); ++r) {
+        for (int j = 0; j < h.num_joints(); ++j) {
+          p.noisy_std(strided[r], j) =
+              std::sqrt(latent(static_cast<Eigen::Index>(r), j) + h.noise_std[j] * h.noise_std[j]);
+        }
+      }
       predictions.push_back(p);
     }
   } else if (name == "reference") {
@@ -481,8 +503,8 @@ int Run(const Flags& flags, int argc, char** argv) {
     f.train_vias = 20;
     f.tests = 1;
   }
-  lagrangian_prototype::Options lagk_options;
-  lagk_options.inducing = f.lagk_inducing;
+  EulerLagrangeGPOptions lagk_options;
+  lagk_options.inducing_states = f.lagk_inducing;
   lagk_options.sigmas = f.lagk_sigmas;
   std::vector<Row> rows;
   std::printf("| robot | case | model | test RMS / noise per joint | max | mean nMSE | 2σ coverage "

@@ -311,5 +311,27 @@ TEST(RowSubset, FloorOfKmOverM) {
   EXPECT_THROW(SelectRows(X, {0, 3}), std::invalid_argument);
 }
 
+TEST(RowSubset, FarthestStatesCoverWhereAStrideAliases) {
+  Matrix line(10, 2);
+  for (int r = 0; r < 10; ++r) line.row(r) << r, 7.0;  // the constant column is ignored
+  EXPECT_EQ(FarthestStateRows(line, 2), (std::vector<int>{0, 9}));
+  EXPECT_EQ(FarthestStateRows(line, 3), (std::vector<int>{0, 4, 9}));
+  EXPECT_EQ(FarthestStateRows(line, 0).size(), 10u);
+  EXPECT_EQ(FarthestStateRows(line, 12).size(), 10u);
+  // A periodic log (period 4 rows, at rest at every 4th): the stride of 4 sees only the rest
+  // state; the farthest states reach both extremes.
+  Matrix periodic(40, 2);
+  for (int r = 0; r < 40; ++r) {
+    const double phase = 2.0 * M_PI * r / 4.0;
+    periodic.row(r) << std::sin(phase), std::cos(phase);
+  }
+  const Matrix strided = SelectRows(periodic, EvenlySpacedRows(40, 10));
+  EXPECT_EQ(strided.col(0).cwiseAbs().maxCoeff() < 1e-9 && strided.col(1).minCoeff() > 0.99, true);
+  const Matrix covered = SelectRows(periodic, FarthestStateRows(periodic, 4));
+  EXPECT_GT(covered.col(0).maxCoeff(), 0.99);
+  EXPECT_LT(covered.col(0).minCoeff(), -0.99);
+  EXPECT_LT(covered.col(1).minCoeff(), -0.99);
+}
+
 }  // namespace
 }  // namespace structgp

@@ -1,7 +1,10 @@
 #include "structgp/core/row_subset.h"
 
-#include <stdexcept>
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <limits>
+#include <stdexcept>
 #include <string>
 
 namespace structgp {
@@ -30,6 +33,40 @@ std::vector<int> EvenlySpacedRows(Eigen::Index m, Eigen::Index count) {
   }
   rows.reserve(static_cast<size_t>(count));
   for (Eigen::Index k = 0; k < count; ++k) rows.push_back(static_cast<int>(k * m / count));
+  return rows;
+}
+
+std::vector<int> FarthestStateRows(const ConstMatrixRef& X, Eigen::Index count) {
+  const Eigen::Index m = X.rows();
+  if (count <= 0 || count >= m) return EvenlySpacedRows(m, m);
+  // Standardised columns; a constant column gets scale 0 (it cannot separate states).
+  const Eigen::RowVectorXd mean = X.colwise().mean();
+  Eigen::RowVectorXd scale(X.cols());
+  for (Eigen::Index c = 0; c < X.cols(); ++c) {
+    const double sd = std::sqrt((X.col(c).array() - mean[c]).square().sum() / static_cast<double>(m));
+    scale[c] = sd > 0.0 ? 1.0 / sd : 0.0;
+  }
+  auto distance2 = [&](Eigen::Index r, const Eigen::RowVectorXd& y) {
+    return ((X.row(r) - y).cwiseProduct(scale)).squaredNorm();
+  };
+  // nearest[r]: squared distance to the chosen rows; before the first, to the mean (which is
+  // then forgotten).
+  std::vector<double> nearest(static_cast<size_t>(m));
+  for (Eigen::Index r = 0; r < m; ++r) nearest[static_cast<size_t>(r)] = distance2(r, mean);
+  std::vector<int> rows;
+  rows.reserve(static_cast<size_t>(count));
+  for (Eigen::Index k = 0; k < count; ++k) {
+    const auto far = std::max_element(nearest.begin(), nearest.end());
+    const Eigen::Index chosen = far - nearest.begin();
+    if (k == 0) std::fill(nearest.begin(), nearest.end(), std::numeric_limits<double>::infinity());
+    rows.push_back(static_cast<int>(chosen));
+    const Eigen::RowVectorXd y = X.row(chosen);
+    for (Eigen::Index r = 0; r < m; ++r) {
+      nearest[static_cast<size_t>(r)] = std::min(nearest[static_cast<size_t>(r)], distance2(r, y));
+    }
+    nearest[static_cast<size_t>(chosen)] = -1.0;  // never again, even among duplicates
+  }
+  std::sort(rows.begin(), rows.end());
   return rows;
 }
 

@@ -1,0 +1,59 @@
+#ifndef STRUCTGP_HYPER_EULER_LAGRANGE_FIT_H_
+#define STRUCTGP_HYPER_EULER_LAGRANGE_FIT_H_
+
+/// @file
+/// The fitting workflow of an EulerLagrangeGP: type-II maximum likelihood of its part weights
+/// and per-joint noise levels (Ceres LBFGS on their logs, analytic gradient) at each sigma of a
+/// grid on evenly spaced rows, the best evidence winning; then the posterior on every row,
+/// exactly or through inducing states that cover the training states (DTC). Options -> Summary.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "structgp/core/status.h"
+#include "structgp/core/types.h"
+#include "structgp/model/euler_lagrange_gp.h"
+
+namespace structgp {
+
+struct EulerLagrangeGPOptions {
+  /// One weight per link's kinetic and potential energy (2N); false: link N's only (one
+  /// kinetic and one potential energy for the whole chain, 2 weights).
+  bool per_link = true;
+  std::vector<double> sigmas = {1.0, 3.0, 10.0, 30.0, 100.0};
+  /// Semi-parametric friction, its prior std the joint's RMS torque and its velocity scale the
+  /// joint's RMS velocity.
+  bool friction = false;
+  double coulomb_width = 0.01;
+  /// Type-II maximum likelihood on this many evenly spaced rows (0 or more than m: all).
+  int hyperparameter_rows = 800;
+  /// Condition on every row through this many inducing states (DTC) chosen to cover the
+  /// states (FarthestStateRows, core/row_subset.h); 0: exactly.
+  int inducing_states = 0;
+  int max_iterations = 80;
+  /// Throws std::invalid_argument naming the first bad field.
+  void Validate() const;
+};
+
+struct EulerLagrangeGPSummary {
+  Status status = Status::kOk;
+  std::string message;  // why, when status is not kOk
+  EulerLagrangeGPHyperparameters hyperparameters;
+  double log_evidence = 0.0;  // of the hyper-parameter rows, at the chosen hyper-parameters
+  std::vector<double> sigmas, log_evidence_per_sigma;  // NaN where the search was not usable
+  int hyperparameter_rows = 0;
+  int rows = 0;
+  int inducing_states = 0;  // 0: exact
+  double seconds = 0.0;
+};
+
+/// On a failure the summary's status says why and *gp is left empty. Throws
+/// std::invalid_argument on bad sizes, non-finite data or bad options.
+EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                          const EulerLagrangeGPOptions& options,
+                                          std::optional<EulerLagrangeGP>* gp);
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_HYPER_EULER_LAGRANGE_FIT_H_

@@ -1,0 +1,118 @@
+#ifndef STRUCTGP_MODEL_EULER_LAGRANGE_GP_H_
+#define STRUCTGP_MODEL_EULER_LAGRANGE_GP_H_
+
+/// @file
+/// One Gaussian process for all joint torques of an N-joint serial chain, in kernel form, with
+/// the EulerLagrangeKernel (a prior on each link's kinetic and potential energy): the outputs
+/// share one (m N) x (m N) system, so every joint's torques inform the energies that the other
+/// joints' torques are derived from. No kinematic parameters. Optional semi-parametric friction
+/// per joint: bases qd_i / v_i, tanh(qd_i / width) and 1, independent, prior std s_i.
+///
+/// Hyper-parameters: sigma of the kernel's trigonometric factors, the 2N part weights, one noise
+/// std per joint (FitEulerLagrangeGP in hyper/euler_lagrange_fit.h chooses them). The posterior
+/// is exact, or through inducing states the deterministic training conditional (DTC):
+/// O(m N (p N)^2) time and O(m N p N) memory instead of O((m N)^3) and O((m N)^2).
+///
+/// Inputs x = (q, qd, qdd) as rows of X (m x 3N); torques Y (m x N).
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Cholesky>
+
+#include "structgp/core/status.h"
+#include "structgp/core/types.h"
+#include "structgp/kernel/euler_lagrange_kernel.h"
+
+namespace structgp {
+
+struct EulerLagrangeGPHyperparameters {
+  double sigma = 1.0;
+  Vector part_weights;  // 2N, >= 0: kinetic 1..N, then potential 1..N (the kernel's parts)
+  Vector noise_std;     // N, > 0
+  /// Friction: empty (none), or N prior stds s_i > 0 with N velocity scales v_i > 0.
+  Vector friction_std;
+  Vector friction_velocity_scale;
+  double coulomb_width = 0.01;  // rad/s, of tanh(qd / width)
+
+  int num_joints() const { return static_cast<int>(noise_std.size()); }
+  bool friction() const { return friction_std.size() > 0; }
+  /// Throws std::invalid_argument naming the first bad field.
+  void Validate() const;
+};
+
+/// The exact log evidence of fixed data at one sigma (and friction) as a function of some part
+/// weights and the noise levels: the parts' Gram matrices are computed once, each evaluation
+/// costs one Cholesky factorisation of the (m N) x (m N) covariance (and its inverse for the
+/// gradient). The parts not searched keep the weights of `base`.
+class EulerLagrangeEvidence {
+ public:
+  /// parts: indices into the kernel's parts (0..2N-1), each once. Throws std::invalid_argument
+  /// on bad sizes, non-finite data or a bad part index.
+  EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base, const ConstMatrixRef& X,
+                        const ConstMatrixRef& Y, std::vector<int> parts);
+
+  /// (log w of each searched part, log noise std of each joint).
+  int num_parameters() const { return static_cast<int>(parts_.size()) + n_; }
+  const std::vector<int>& parts() const { return parts_; }
+  /// The mean of each searched part's Gram diagonal (for starting points).
+  double MeanPartVariance(int k) const { return grams_[static_cast<size_t>(k)].diagonal().mean(); }
+
+  /// log p(Y), and its gradient (num_parameters()) when gradient is not null; -infinity when
+  /// the covariance is not positive definite.
+  double Evaluate(const double* log_parameters, double* gradient) const;
+
+ private:
+  int n_;
+  std::vector<int> parts_;
+  std::vector<Matrix> grams_;
+  Matrix fixed_;  // friction + the parts not searched
+  Vector y_;
+};
+
+class EulerLagrangeGP {
+ public:
+  /// Throws std::invalid_argument (Validate).
+  explicit EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters);
+
+  const EulerLagrangeGPHyperparameters& hyperparameters() const { return hyper_; }
+  const EulerLagrangeKernel& kernel() const { return kernel_; }
+  int num_joints() const { return hyper_.num_joints(); }
+
+  /// The posterior on (X, Y): exact when inducing is empty, else DTC through the inducing
+  /// states (p x 3N). kNotPositiveDefinite when a factorisation fails (the model is then
+  /// unchanged). Throws std::invalid_argument on bad sizes or non-finite data.
+  Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                   const ConstMatrixRef& inducing = Matrix());
+  bool conditioned() const { return alpha_.size() > 0; }
+
+  /// Posterior mean (m x N) and, when latent_variance is not null, the latent variance (m x N;
+  /// add noise_std^2 for the noisy one). kInvalidInput on bad sizes or non-finite states.
+  /// Throws std::logic_error when not conditioned.
+  Status Predict(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_variance = nullptr) const;
+
+  /// log p(Y) of the exact posterior's data (throws std::logic_error after a DTC condition or
+  /// before any).
+  double LogMarginalLikelihood() const;
+
+  /// log p(Y | X, hyper-parameters), exact, and when gradient is not null its gradient in
+  /// (log part_weights (2N), log noise_std (N)). -infinity when the covariance is not positive
+  /// definite.
+  static double LogEvidence(const EulerLagrangeGPHyperparameters& hyperparameters,
+                            const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                            Vector* gradient = nullptr);
+
+ private:
+  EulerLagrangeGPHyperparameters hyper_;
+  EulerLagrangeKernel kernel_;
+  Matrix states_;               // training states (exact) or inducing states (DTC)
+  Vector alpha_;                // exact: C^-1 y; DTC: L^-T B^-1 V S^-1/2 y
+  Eigen::LLT<Matrix> factor_;   // exact: C; DTC: K_ZZ
+  Eigen::LLT<Matrix> factor_b_;  // DTC: B = I + V V^T, V = L^-1 K_ZX S^-1/2
+  bool dtc_ = false;
+  double log_evidence_ = 0.0;   // exact only
+};
+
+}  // namespace structgp
+
+#endif  // STRUCTGP_MODEL_EULER_LAGRANGE_GP_H_

@@ -1,0 +1,166 @@
+#include "structgp/hyper/euler_lagrange_fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include <ceres/ceres.h>
+
+#include "structgp/core/row_subset.h"
+
+namespace structgp {
+namespace {
+
+void Require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("FitEulerLagrangeGP: " + what);
+}
+
+double Rms(const ConstMatrixRef& A, Eigen::Index col) {
+  return std::sqrt(A.col(col).squaredNorm() / static_cast<double>(A.rows()));
+}
+
+// -log evidence for Ceres.
+class NegativeLogEvidence : public ceres::FirstOrderFunction {
+ public:
+  explicit NegativeLogEvidence(const EulerLagrangeEvidence& evidence) : evidence_(evidence) {}
+  int NumParameters() const override { return evidence_.num_parameters(); }
+  bool Evaluate(const double* p, double* cost, double* gradient) const override {
+    const double value = evidence_.Evaluate(p, gradient);
+    if (!std::isfinite(value)) return false;
+    *cost = -value;
+    if (gradient != nullptr) {
+      for (int k = 0; k < NumParameters(); ++k) gradient[k] = -gradient[k];
+    }
+    return true;
+  }
+
+ private:
+  const EulerLagrangeEvidence& evidence_;
+};
+
+}  // namespace
+
+void EulerLagrangeGPOptions::Validate() const {
+  Require(!sigmas.empty(), "options: no sigma to try");
+  for (double s : sigmas) {
+    Require(s > 0.0 && std::isfinite(s), "options: sigmas must be finite and > 0, got " +
+                                             std::to_string(s));
+  }
+  Require(coulomb_width > 0.0 && std::isfinite(coulomb_width),
+          "options: coulomb_width must be finite and > 0");
+  Require(hyperparameter_rows >= 0, "options: hyperparameter_rows must be >= 0");
+  Require(inducing_states >= 0, "options: inducing_states must be >= 0");
+  Require(max_iterations >= 1, "options: max_iterations must be >= 1");
+}
+
+EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                          const EulerLagrangeGPOptions& options,
+                                          std::optional<EulerLagrangeGP>* gp) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Validate();
+  const int n = static_cast<int>(Y.cols());
+  Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
+          "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " torque columns, got " +
+              std::to_string(n));
+  Require(X.cols() == 3 * n && X.rows() == Y.rows() && X.rows() > 0,
+          "expected states m x " + std::to_string(3 * n) + " beside torques m x " +
+              std::to_string(n) + ", got " + std::to_string(X.rows()) + " x " +
+              std::to_string(X.cols()) + " and " + std::to_string(Y.rows()) + " x " +
+              std::to_string(n));
+  Require(X.allFinite() && Y.allFinite(), "non-finite state or torque");
+  gp->reset();
+  EulerLagrangeGPSummary summary;
+  summary.rows = static_cast<int>(X.rows());
+  const std::vector<int> hyper_rows = EvenlySpacedRows(X.rows(), options.hyperparameter_rows);
+  summary.hyperparameter_rows = static_cast<int>(hyper_rows.size());
+  const Matrix Xh = SelectRows(X, hyper_rows), Yh = SelectRows(Y, hyper_rows);
+
+  // Data-derived scales: friction's prior std is the joint's RMS torque, its velocity scale
+  // the joint's RMS velocity.
+  EulerLagrangeGPHyperparameters h;
+  h.noise_std = Vector::Ones(n);
+  h.part_weights = Vector::Zero(2 * n);
+  if (options.friction) {
+    h.coulomb_width = options.coulomb_width;
+    h.friction_std.resize(n);
+    h.friction_velocity_scale.resize(n);
+    for (int j = 0; j < n; ++j) {
+      h.friction_std[j] = std::max(Rms(Y, j), 1e-12);
+      h.friction_velocity_scale[j] = std::max(Rms(X, n + j), 1e-3);
+    }
+  }
+  std::vector<int> searched;
+  for (int kind = 0; kind < 2; ++kind) {
+    for (int link = 0; link < n; ++link) {
+      if (options.per_link || link == n - 1) searched.push_back(kind * n + link);
+    }
+  }
+  const int P = static_cast<int>(searched.size());
+  double spread = 0.0;
+  for (int j = 0; j < n; ++j) spread += Rms(Yh, j) * Rms(Yh, j) / n;
+
+  double best = -std::numeric_limits<double>::infinity();
+  EulerLagrangeGPHyperparameters best_h;
+  for (double sigma : options.sigmas) {
+    summary.sigmas.push_back(sigma);
+    summary.log_evidence_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
+    h.sigma = sigma;
+    const EulerLagrangeEvidence evidence(h, Xh, Yh, searched);
+    // Start: the torque's spread shared by the parts, noise at 10% of each joint's RMS torque.
+    std::vector<double> p(static_cast<size_t>(P + n));
+    for (int k = 0; k < P; ++k) {
+      p[static_cast<size_t>(k)] =
+          std::log(std::max(spread, 1e-300) / P / std::max(evidence.MeanPartVariance(k), 1e-300));
+    }
+    for (int j = 0; j < n; ++j) {
+      p[static_cast<size_t>(P + j)] = std::log(std::max(0.1 * Rms(Yh, j), 1e-12));
+    }
+    ceres::GradientProblem problem(new NegativeLogEvidence(evidence));
+    ceres::GradientProblemSolver::Options o;
+    o.max_num_iterations = options.max_iterations;
+    o.logging_type = ceres::SILENT;
+    ceres::GradientProblemSolver::Summary s;
+    ceres::Solve(o, problem, p.data(), &s);
+    if (!s.IsSolutionUsable() || !std::isfinite(s.final_cost)) continue;
+    summary.log_evidence_per_sigma.back() = -s.final_cost;
+    if (-s.final_cost > best) {
+      best = -s.final_cost;
+      best_h = h;
+      for (int k = 0; k < P; ++k) {
+        best_h.part_weights[searched[static_cast<size_t>(k)]] = std::exp(p[static_cast<size_t>(k)]);
+      }
+      for (int j = 0; j < n; ++j) best_h.noise_std[j] = std::exp(p[static_cast<size_t>(P + j)]);
+    }
+  }
+  auto finish = [&](Status status, std::string message) {
+    summary.status = status;
+    summary.message = std::move(message);
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return summary;
+  };
+  if (!std::isfinite(best)) {
+    return finish(Status::kNotPositiveDefinite,
+                  "type-II maximum likelihood found no usable hyper-parameters at any sigma");
+  }
+  summary.hyperparameters = best_h;
+  summary.log_evidence = best;
+  EulerLagrangeGP model(best_h);
+  Matrix Z;
+  if (options.inducing_states > 0 && options.inducing_states < X.rows()) {
+    Z = SelectRows(X, FarthestStateRows(X, options.inducing_states));
+    summary.inducing_states = static_cast<int>(Z.rows());
+  }
+  const Status status = model.Condition(X, Y, Z);
+  if (!IsOk(status)) {
+    return finish(status, "the posterior's factorisation failed at the fitted hyper-parameters");
+  }
+  gp->emplace(std::move(model));
+  return finish(Status::kOk, "");
+}
+
+}  // namespace structgp

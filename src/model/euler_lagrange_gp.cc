@@ -1,0 +1,294 @@
+#include "structgp/model/euler_lagrange_gp.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace structgp {
+namespace {
+
+constexpr double kLog2Pi = 1.8378770664093453;
+
+void Require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("EulerLagrangeGP: " + what);
+}
+
+bool AllFinite(const ConstMatrixRef& A) { return A.allFinite(); }
+
+// Rows state-major: y[s N + i] = Y(s, i).
+Vector Stack(const ConstMatrixRef& Y) {
+  const Eigen::Index n = Y.cols();
+  Vector y(Y.size());
+  for (Eigen::Index s = 0; s < Y.rows(); ++s) y.segment(s * n, n) = Y.row(s).transpose();
+  return y;
+}
+
+double FrictionCovariance(const EulerLagrangeGPHyperparameters& h, int i, double qd, double qdp) {
+  const double v = h.friction_velocity_scale[i], s = h.friction_std[i], w = h.coulomb_width;
+  return s * s * (qd * qdp / (v * v) + std::tanh(qd / w) * std::tanh(qdp / w) + 1.0);
+}
+
+// The Gram parts over X (m x 3N) against Z (p x 3N), (m N) x (p N), row index state * N + i:
+// parts[k] for the kernel part `which[k]` at unit weight, and the friction part in *F (zero
+// when there is none). With symmetric (X = Z) only half the pairs are evaluated.
+void PartGrams(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperparameters& h,
+               const ConstMatrixRef& X, const ConstMatrixRef& Z, bool symmetric,
+               const std::vector<int>& which, std::vector<Matrix>* parts, Matrix* F) {
+  const int n = kernel.num_joints();
+  const Eigen::Index m = X.rows(), p = Z.rows();
+  parts->assign(which.size(), Matrix::Zero(m * n, p * n));
+  F->setZero(m * n, p * n);
+  Matrix kin(n, n), pot(n, n);
+  const Matrix Xt = X.transpose(), Zt = Z.transpose();
+  for (Eigen::Index s = 0; s < m; ++s) {
+    for (Eigen::Index t = symmetric ? s : 0; t < p; ++t) {
+      int computed = -1;
+      for (size_t k = 0; k < which.size(); ++k) {
+        const int link = which[k] % n;
+        if (link != computed) {
+          kernel.EvaluateLink(Xt.col(s), Zt.col(t), link, kin, pot);
+          computed = link;
+        }
+        const Matrix& B = which[k] < n ? kin : pot;
+        (*parts)[k].block(s * n, t * n, n, n) = B;
+        if (symmetric && t != s) (*parts)[k].block(t * n, s * n, n, n) = B.transpose();
+      }
+      if (h.friction()) {
+        for (int i = 0; i < n; ++i) {
+          const double f = FrictionCovariance(h, i, Xt(n + i, s), Zt(n + i, t));
+          (*F)(s * n + i, t * n + i) = f;
+          if (symmetric && t != s) (*F)(t * n + i, s * n + i) = f;
+        }
+      }
+    }
+  }
+}
+
+// The covariance of the torques at X against Z at the hyper-parameters (kernel + friction).
+Matrix Covariance(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperparameters& h,
+                  const ConstMatrixRef& X, const ConstMatrixRef& Z, bool symmetric) {
+  const int n = kernel.num_joints();
+  const Eigen::Index m = X.rows(), p = Z.rows();
+  Matrix C = Matrix::Zero(m * n, p * n), block(n, n);
+  const Matrix Xt = X.transpose(), Zt = Z.transpose();
+  for (Eigen::Index s = 0; s < m; ++s) {
+    for (Eigen::Index t = symmetric ? s : 0; t < p; ++t) {
+      kernel.Evaluate(Xt.col(s), Zt.col(t), h.part_weights, block);
+      if (h.friction()) {
+        for (int i = 0; i < n; ++i) block(i, i) += FrictionCovariance(h, i, Xt(n + i, s), Zt(n + i, t));
+      }
+      C.block(s * n, t * n, n, n) = block;
+      if (symmetric && t != s) C.block(t * n, s * n, n, n) = block.transpose();
+    }
+  }
+  return C;
+}
+
+// log p(y) for C = sum_k w_k parts[k] + F + diag(noise^2), and its gradient in (log w_k...,
+// log noise_j...). -infinity when C is not positive definite.
+double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F, const Vector& y,
+                       const double* log_w, const double* log_noise, double* gradient) {
+  const size_t P = parts.size();
+  Matrix C = F;
+  for (size_t k = 0; k < P; ++k) C += std::exp(log_w[k]) * parts[k];
+  for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += std::exp(2.0 * log_noise[r % n]);
+  const Eigen::LLT<Matrix> llt(C);
+  if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
+  const Vector alpha = llt.solve(y);
+  double half_logdet = 0.0;
+  for (Eigen::Index r = 0; r < C.rows(); ++r) half_logdet += std::log(llt.matrixL()(r, r));
+  const double value = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
+  if (!std::isfinite(value)) return -std::numeric_limits<double>::infinity();
+  if (gradient != nullptr) {
+    const Matrix Ci = llt.solve(Matrix::Identity(C.rows(), C.rows()));
+    // d log p / d log w = -1/2 w (tr(C^-1 A) - alpha^T A alpha).
+    for (size_t k = 0; k < P; ++k) {
+      const Matrix& A = parts[k];
+      gradient[k] = -0.5 * std::exp(log_w[k]) * (Ci.cwiseProduct(A).sum() - alpha.dot(A * alpha));
+    }
+    // d C / d log s_j = 2 s_j^2 on joint j's diagonal.
+    for (int j = 0; j < n; ++j) {
+      double tr = 0.0, aa = 0.0;
+      for (Eigen::Index r = j; r < C.rows(); r += n) {
+        tr += Ci(r, r);
+        aa += alpha[r] * alpha[r];
+      }
+      gradient[P + static_cast<size_t>(j)] = -(tr - aa) * std::exp(2.0 * log_noise[j]);
+    }
+  }
+  return value;
+}
+
+void CheckData(const ConstMatrixRef& X, const ConstMatrixRef& Y, int n) {
+  Require(Y.cols() == n, "expected " + std::to_string(n) + " torque columns, got " +
+                             std::to_string(Y.cols()));
+  Require(X.cols() == 3 * n, "expected " + std::to_string(3 * n) + " state columns, got " +
+                                 std::to_string(X.cols()));
+  Require(X.rows() == Y.rows(), "states have " + std::to_string(X.rows()) + " rows, torques " +
+                                    std::to_string(Y.rows()));
+  Require(X.rows() > 0, "no rows");
+  Require(AllFinite(X) && AllFinite(Y), "non-finite state or torque");
+}
+
+}  // namespace
+
+void EulerLagrangeGPHyperparameters::Validate() const {
+  const int n = num_joints();
+  Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
+          "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " noise levels (one per "
+          "joint), got " + std::to_string(n));
+  Require(sigma > 0.0 && std::isfinite(sigma), "sigma must be finite and > 0");
+  Require(part_weights.size() == 2 * n, "expected " + std::to_string(2 * n) +
+                                            " part weights, got " +
+                                            std::to_string(part_weights.size()));
+  Require(part_weights.allFinite() && (part_weights.array() >= 0.0).all(),
+          "part weights must be finite and >= 0");
+  Require(noise_std.allFinite() && (noise_std.array() > 0.0).all(),
+          "noise stds must be finite and > 0");
+  if (friction_std.size() > 0 || friction_velocity_scale.size() > 0) {
+    Require(friction_std.size() == n && friction_velocity_scale.size() == n,
+            "friction needs " + std::to_string(n) + " prior stds and velocity scales");
+    Require(friction_std.allFinite() && (friction_std.array() > 0.0).all() &&
+                friction_velocity_scale.allFinite() &&
+                (friction_velocity_scale.array() > 0.0).all(),
+            "friction prior stds and velocity scales must be finite and > 0");
+    Require(coulomb_width > 0.0 && std::isfinite(coulomb_width),
+            "coulomb_width must be finite and > 0");
+  }
+}
+
+EulerLagrangeGP::EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters)
+    : hyper_((hyperparameters.Validate(), std::move(hyperparameters))),
+      kernel_(hyper_.num_joints(), hyper_.sigma) {}
+
+EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base,
+                                             const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                             std::vector<int> parts)
+    : n_(base.num_joints()), parts_(std::move(parts)) {
+  base.Validate();
+  CheckData(X, Y, n_);
+  std::vector<bool> searched(static_cast<size_t>(2 * n_), false);
+  for (int p : parts_) {
+    Require(p >= 0 && p < 2 * n_ && !searched[static_cast<size_t>(p)],
+            "part " + std::to_string(p) + " out of range [0, " + std::to_string(2 * n_) +
+                ") or repeated");
+    searched[static_cast<size_t>(p)] = true;
+  }
+  std::vector<int> rest;
+  for (int p = 0; p < 2 * n_; ++p) {
+    if (!searched[static_cast<size_t>(p)] && base.part_weights[p] != 0.0) rest.push_back(p);
+  }
+  const EulerLagrangeKernel kernel(n_, base.sigma);
+  PartGrams(kernel, base, X, X, true, parts_, &grams_, &fixed_);
+  if (!rest.empty()) {
+    std::vector<Matrix> others;
+    Matrix unused;
+    EulerLagrangeGPHyperparameters no_friction = base;
+    no_friction.friction_std.resize(0);
+    no_friction.friction_velocity_scale.resize(0);
+    PartGrams(kernel, no_friction, X, X, true, rest, &others, &unused);
+    for (size_t k = 0; k < rest.size(); ++k) fixed_ += base.part_weights[rest[k]] * others[k];
+  }
+  y_ = Stack(Y);
+}
+
+double EulerLagrangeEvidence::Evaluate(const double* log_parameters, double* gradient) const {
+  return EvidenceOfParts(n_, grams_, fixed_, y_, log_parameters, log_parameters + parts_.size(),
+                         gradient);
+}
+
+double EulerLagrangeGP::LogEvidence(const EulerLagrangeGPHyperparameters& h,
+                                    const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                    Vector* gradient) {
+  const int n = h.num_joints();
+  std::vector<int> all;
+  for (int p = 0; p < 2 * n; ++p) all.push_back(p);
+  const EulerLagrangeEvidence evidence(h, X, Y, all);
+  // The log of a zero weight: the part contributes nothing and its derivative is 0.
+  Vector log_parameters(3 * n);
+  log_parameters << h.part_weights.array().log(), h.noise_std.array().log();
+  if (gradient != nullptr) gradient->resize(3 * n);
+  return evidence.Evaluate(log_parameters.data(), gradient != nullptr ? gradient->data() : nullptr);
+}
+
+Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                  const ConstMatrixRef& inducing) {
+  const int n = num_joints();
+  CheckData(X, Y, n);
+  const Vector& noise = hyper_.noise_std;
+  if (inducing.size() == 0) {
+    Matrix C = Covariance(kernel_, hyper_, X, X, true);
+    for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += noise[r % n] * noise[r % n];
+    Eigen::LLT<Matrix> llt(C);
+    if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
+    const Vector y = Stack(Y);
+    Vector alpha = llt.solve(y);
+    double half_logdet = 0.0;
+    for (Eigen::Index r = 0; r < C.rows(); ++r) half_logdet += std::log(llt.matrixL()(r, r));
+    log_evidence_ = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
+    factor_ = std::move(llt);
+    alpha_ = std::move(alpha);
+    states_ = X;
+    dtc_ = false;
+    return Status::kOk;
+  }
+  Require(inducing.cols() == 3 * n, "inducing states need " + std::to_string(3 * n) +
+                                        " columns, got " + std::to_string(inducing.cols()));
+  Require(AllFinite(inducing), "non-finite inducing state");
+  // K_ZZ = L L^T (relative jitter 1e-8), V = L^-1 K_ZX S^-1/2, B = I + V V^T,
+  // alpha = L^-T B^-1 V S^-1/2 y.
+  Matrix Kzz = Covariance(kernel_, hyper_, inducing, inducing, true);
+  Kzz.diagonal().array() += 1e-8 * Kzz.diagonal().mean();
+  Eigen::LLT<Matrix> llt(Kzz);
+  if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
+  Matrix V = Covariance(kernel_, hyper_, inducing, X, false);  // (p N) x (m N)
+  Vector ys = Stack(Y);
+  for (Eigen::Index r = 0; r < V.cols(); ++r) {
+    V.col(r) /= noise[r % n];
+    ys[r] /= noise[r % n];
+  }
+  llt.matrixL().solveInPlace(V);
+  Matrix B = Matrix::Identity(V.rows(), V.rows());
+  B.selfadjointView<Eigen::Lower>().rankUpdate(V);
+  Eigen::LLT<Matrix> llt_b(B);
+  if (llt_b.info() != Eigen::Success) return Status::kNotPositiveDefinite;
+  alpha_ = llt.matrixU().solve(llt_b.solve(V * ys));
+  factor_ = std::move(llt);
+  factor_b_ = std::move(llt_b);
+  states_ = inducing;
+  dtc_ = true;
+  return Status::kOk;
+}
+
+Status EulerLagrangeGP::Predict(const ConstMatrixRef& X, Matrix* mean,
+                                Matrix* latent_variance) const {
+  if (!conditioned()) throw std::logic_error("EulerLagrangeGP::Predict: not conditioned");
+  const int n = num_joints();
+  if (X.cols() != 3 * n || !AllFinite(X)) return Status::kInvalidInput;
+  mean->resize(X.rows(), n);
+  if (latent_variance != nullptr) latent_variance->resize(X.rows(), n);
+  Matrix Kss(n, n);
+  for (Eigen::Index s = 0; s < X.rows(); ++s) {
+    const Matrix Ks = Covariance(kernel_, hyper_, X.row(s), states_, false);  // N x (p N)
+    mean->row(s) = (Ks * alpha_).transpose();
+    if (latent_variance == nullptr) continue;
+    Kss = Covariance(kernel_, hyper_, X.row(s), X.row(s), false);
+    const Matrix v = factor_.matrixL().solve(Ks.transpose());
+    Vector var = Kss.diagonal() - v.colwise().squaredNorm().transpose();
+    if (dtc_) var += factor_b_.matrixL().solve(v).colwise().squaredNorm().transpose();
+    latent_variance->row(s) = var.cwiseMax(0.0).transpose();
+  }
+  return Status::kOk;
+}
+
+double EulerLagrangeGP::LogMarginalLikelihood() const {
+  if (!conditioned() || dtc_) {
+    throw std::logic_error("EulerLagrangeGP::LogMarginalLikelihood: needs an exact posterior");
+  }
+  return log_evidence_;
+}
+
+}  // namespace structgp

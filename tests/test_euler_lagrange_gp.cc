@@ -1,0 +1,241 @@
+// EulerLagrangeGP against independent references: its exact posterior and evidence against
+// RegressorGP on the Lagrangian regressor with the kernel's prior variances (weight space vs
+// kernel form); the DTC posterior with every state induced against the exact one; the evidence
+// gradient against central differences; a fit on torques of the prior's class against held-out
+// truth; and the errors a user gets for bad input.
+
+#include "structgp/model/euler_lagrange_gp.h"
+#include "structgp/hyper/euler_lagrange_fit.h"
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <random>
+#include <stdexcept>
+
+#include <gtest/gtest.h>
+
+#include "structgp/feature/lagrangian_regressor_map.h"
+#include "structgp/model/regressor_gp.h"
+
+namespace structgp {
+namespace {
+
+Matrix RandomStates(int m, int n, std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-2.5, 2.5);
+  return Matrix::NullaryExpr(m, 3 * n, [&]() { return u(*rng); });
+}
+
+EulerLagrangeGPHyperparameters RandomHyper(int n, bool friction, std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(0.3, 2.0);
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = 3.0;
+  h.part_weights = Vector::NullaryExpr(2 * n, [&]() { return u(*rng); });
+  h.noise_std = Vector::NullaryExpr(n, [&]() { return 0.1 * u(*rng); });
+  if (friction) {
+    h.friction_std = Vector::NullaryExpr(n, [&]() { return u(*rng); });
+    h.friction_velocity_scale = Vector::NullaryExpr(n, [&]() { return u(*rng); });
+    h.coulomb_width = 0.2;
+  }
+  return h;
+}
+
+// Torques of the Lagrangian regressor with parameters drawn from the kernel's own prior.
+Matrix TwinTorques(const LagrangianRegressorMap& map, const Vector& theta, const Matrix& X) {
+  const int n = map.num_outputs();
+  Matrix Y(X.rows(), n), psi(n, map.dim());
+  for (Eigen::Index s = 0; s < X.rows(); ++s) {
+    map.Evaluate(X.row(s).transpose(), psi);
+    Y.row(s) = (psi * theta).transpose();
+  }
+  return Y;
+}
+
+TEST(EulerLagrangeGP, ExactPosteriorEqualsTheRegressorTwin) {
+  std::mt19937 rng(21);
+  const int n = 3, m = 40;
+  const LagrangianRegressorMap map(n);
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, false, &rng);
+  const Vector v = map.KernelPriorVariance(h.sigma, h.part_weights);
+  std::normal_distribution<double> normal;
+  const Vector theta = Vector::NullaryExpr(map.dim(), [&]() { return normal(rng); })
+                           .cwiseProduct(v.cwiseSqrt());
+  const Matrix X = RandomStates(m, n, &rng);
+  Matrix Y = TwinTorques(map, theta, X);
+  for (Eigen::Index s = 0; s < m; ++s) {
+    for (int i = 0; i < n; ++i) Y(s, i) += h.noise_std[i] * normal(rng);
+  }
+
+  EulerLagrangeGP gp(h);
+  ASSERT_EQ(gp.Condition(X, Y), Status::kOk);
+  RegressorGP twin(Vector::Zero(map.dim()), v, h.noise_std.array().square());
+  RegressorStatistics stats(map.dim(), n);
+  stats.Accumulate(map, X, Y);
+  ASSERT_EQ(twin.Fit(stats, false), Status::kOk);
+
+  const Matrix Xt = RandomStates(10, n, &rng);
+  Matrix mean, var;
+  ASSERT_EQ(gp.Predict(Xt, &mean, &var), Status::kOk);
+  auto ws = twin.MakeWorkspace();
+  Matrix psi(n, map.dim());
+  Vector m2(n), lat(n), noisy(n);
+  double scale = 0.0, vscale = 0.0;
+  Matrix mean2(Xt.rows(), n), var2(Xt.rows(), n);
+  for (Eigen::Index s = 0; s < Xt.rows(); ++s) {
+    map.Evaluate(Xt.row(s).transpose(), psi);
+    ASSERT_EQ(twin.PredictWithVariance(psi, m2, lat, noisy, ws), Status::kOk);
+    mean2.row(s) = m2.transpose();
+    var2.row(s) = lat.transpose();
+  }
+  scale = mean2.cwiseAbs().maxCoeff();
+  vscale = var2.cwiseAbs().maxCoeff();
+  EXPECT_LT((mean - mean2).cwiseAbs().maxCoeff(), 1e-6 * scale) << mean << "\n\n" << mean2;
+  EXPECT_LT((var - var2).cwiseAbs().maxCoeff(), 1e-6 * vscale) << var << "\n\n" << var2;
+  EXPECT_NEAR(gp.LogMarginalLikelihood(), twin.LogMarginalLikelihood(),
+              1e-7 * std::abs(twin.LogMarginalLikelihood()));
+  EXPECT_NEAR(EulerLagrangeGP::LogEvidence(h, X, Y), gp.LogMarginalLikelihood(),
+              1e-9 * std::abs(gp.LogMarginalLikelihood()));
+}
+
+TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
+  std::mt19937 rng(4);
+  const int n = 3, m = 25;
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, true, &rng);
+  const Matrix X = RandomStates(m, n, &rng);
+  std::normal_distribution<double> normal;
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return normal(rng); });
+  EulerLagrangeGP exact(h), dtc(h), half(h);
+  ASSERT_EQ(exact.Condition(X, Y), Status::kOk);
+  ASSERT_EQ(dtc.Condition(X, Y, X), Status::kOk);
+  ASSERT_EQ(half.Condition(X, Y, X.topRows(5)), Status::kOk);
+  const Matrix Xt = RandomStates(8, n, &rng);
+  Matrix me, ve, md, vd, mh, vh;
+  ASSERT_EQ(exact.Predict(Xt, &me, &ve), Status::kOk);
+  ASSERT_EQ(dtc.Predict(Xt, &md, &vd), Status::kOk);
+  ASSERT_EQ(half.Predict(Xt, &mh, &vh), Status::kOk);
+  EXPECT_LT((me - md).cwiseAbs().maxCoeff(), 1e-4 * me.cwiseAbs().maxCoeff());
+  EXPECT_LT((ve - vd).cwiseAbs().maxCoeff(), 1e-4 * ve.cwiseAbs().maxCoeff());
+  // Five inducing states of 25 do not carry the same posterior (the comparison can fail).
+  EXPECT_GT((me - mh).cwiseAbs().maxCoeff(), 1e-2 * me.cwiseAbs().maxCoeff());
+  EXPECT_THROW(dtc.LogMarginalLikelihood(), std::logic_error);
+}
+
+TEST(EulerLagrangeGP, EvidenceGradientMatchesCentralDifferences) {
+  std::mt19937 rng(9);
+  const int n = 3, m = 12;
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, true, &rng);
+  const Matrix X = RandomStates(m, n, &rng);
+  std::normal_distribution<double> normal;
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return 3.0 * normal(rng); });
+  Vector g;
+  const double value = EulerLagrangeGP::LogEvidence(h, X, Y, &g);
+  ASSERT_TRUE(std::isfinite(value));
+  ASSERT_EQ(g.size(), 3 * n);
+  const double step = 1e-5;
+  for (int k = 0; k < 3 * n; ++k) {
+    EulerLagrangeGPHyperparameters plus = h, minus = h;
+    Vector& a = k < 2 * n ? plus.part_weights : plus.noise_std;
+    Vector& b = k < 2 * n ? minus.part_weights : minus.noise_std;
+    const int idx = k < 2 * n ? k : k - 2 * n;
+    a[idx] *= std::exp(step);
+    b[idx] *= std::exp(-step);
+    const double fd = (EulerLagrangeGP::LogEvidence(plus, X, Y) -
+                       EulerLagrangeGP::LogEvidence(minus, X, Y)) / (2.0 * step);
+    EXPECT_NEAR(g[k], fd, 1e-5 * (1.0 + std::abs(fd))) << "parameter " << k;
+  }
+}
+
+TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
+  std::mt19937 rng(13);
+  const int n = 3;
+  const LagrangianRegressorMap map(n);
+  Vector w(2 * n);
+  w << 0.5, 2.0, 1.0, 3.0, 1.0, 0.5;
+  const Vector v = map.KernelPriorVariance(3.0, w);
+  std::normal_distribution<double> normal;
+  const Vector theta = Vector::NullaryExpr(map.dim(), [&]() { return normal(rng); })
+                           .cwiseProduct(v.cwiseSqrt());
+  const Matrix X = RandomStates(200, n, &rng), Xt = RandomStates(100, n, &rng);
+  const Matrix truth = TwinTorques(map, theta, X), truth_t = TwinTorques(map, theta, Xt);
+  const double noise = 0.05 * std::sqrt(truth.squaredNorm() / truth.size());
+  const Matrix Y = truth + Matrix::NullaryExpr(200, n, [&]() { return noise * normal(rng); });
+  EulerLagrangeGPOptions options;
+  options.sigmas = {1.0, 3.0, 10.0};
+  options.hyperparameter_rows = 120;
+  std::optional<EulerLagrangeGP> gp;
+  const EulerLagrangeGPSummary summary = FitEulerLagrangeGP(X, Y, options, &gp);
+  ASSERT_EQ(summary.status, Status::kOk) << summary.message;
+  ASSERT_TRUE(gp.has_value());
+  EXPECT_EQ(summary.rows, 200);
+  EXPECT_EQ(summary.hyperparameter_rows, 120);
+  EXPECT_EQ(summary.log_evidence_per_sigma.size(), 3u);
+  Matrix mean, var;
+  ASSERT_EQ(gp->Predict(Xt, &mean, &var), Status::kOk);
+  int inside = 0;
+  for (int i = 0; i < n; ++i) {
+    const double rms = std::sqrt((mean.col(i) - truth_t.col(i)).squaredNorm() / Xt.rows());
+    const double signal = std::sqrt(truth_t.col(i).squaredNorm() / Xt.rows());
+    EXPECT_LT(rms, 0.1 * signal) << "joint " << i + 1;
+    EXPECT_GT(summary.hyperparameters.noise_std[i], 0.5 * noise) << "joint " << i + 1;
+    EXPECT_LT(summary.hyperparameters.noise_std[i], 2.0 * noise) << "joint " << i + 1;
+    for (Eigen::Index s = 0; s < Xt.rows(); ++s) {
+      inside += std::abs(mean(s, i) - truth_t(s, i)) <= 2.0 * std::sqrt(var(s, i)) + 1e-12;
+    }
+  }
+  EXPECT_GT(inside, 0.8 * n * Xt.rows());
+
+  // One weight pair for the whole chain: only link N's parts are fitted.
+  options.per_link = false;
+  const EulerLagrangeGPSummary whole = FitEulerLagrangeGP(X, Y, options, &gp);
+  ASSERT_EQ(whole.status, Status::kOk) << whole.message;
+  const Vector& pw = whole.hyperparameters.part_weights;
+  for (int link = 0; link + 1 < n; ++link) {
+    EXPECT_EQ(pw[link], 0.0);
+    EXPECT_EQ(pw[n + link], 0.0);
+  }
+  EXPECT_GT(pw[n - 1], 0.0);
+  EXPECT_GT(pw[2 * n - 1], 0.0);
+}
+
+TEST(EulerLagrangeGP, RejectsBadInputWithAClearError) {
+  std::mt19937 rng(2);
+  const int n = 2;
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, false, &rng);
+  EulerLagrangeGP gp(h);
+  const Matrix X = RandomStates(5, n, &rng);
+  const Matrix Y = Matrix::Ones(5, n);
+  Matrix mean;
+  EXPECT_THROW(gp.Predict(X, &mean), std::logic_error);
+  auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_NE(message([&] { gp.Condition(X, Matrix::Ones(5, 3)); }).find("expected 2 torque columns, got 3"),
+            std::string::npos);
+  EXPECT_NE(message([&] { gp.Condition(X.topRows(4), Y); }).find("states have 4 rows, torques 5"),
+            std::string::npos);
+  Matrix bad = X;
+  bad(2, 1) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(message([&] { gp.Condition(bad, Y); }).find("non-finite"), std::string::npos);
+  EulerLagrangeGPHyperparameters wrong = h;
+  wrong.part_weights.resize(3);
+  EXPECT_NE(message([&] { EulerLagrangeGP g(wrong); }).find("expected 4 part weights, got 3"),
+            std::string::npos);
+  wrong = h;
+  wrong.noise_std[0] = 0.0;
+  EXPECT_THROW(EulerLagrangeGP{wrong}, std::invalid_argument);
+  EulerLagrangeGPOptions options;
+  options.sigmas = {1.0, -1.0};
+  std::optional<EulerLagrangeGP> out;
+  EXPECT_THROW(FitEulerLagrangeGP(X, Y, options, &out), std::invalid_argument);
+  ASSERT_EQ(gp.Condition(X, Y), Status::kOk);
+  EXPECT_EQ(gp.Predict(bad, &mean), Status::kInvalidInput);
+  EXPECT_EQ(gp.Predict(Matrix::Zero(2, 5), &mean), Status::kInvalidInput);
+}
+
+}  // namespace
+}  // namespace structgp
