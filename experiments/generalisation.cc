@@ -5,6 +5,7 @@
 //                  [--models=reference,rbd+fri,rbd+fri/off30,lag+fri,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
 //                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--lagk-inducing=0]
+//                  [--lagk-inducing-rule=cover|stride]
 //                  [--lagk-sigmas=1,3,10,30,100] [--out=FILE.csv]
 //                  [--quick] [--check]
 //
@@ -25,8 +26,12 @@
 // on every joint. "lagk" is the library's EulerLagrangeGP (one GP for all joints on the
 // Euler-Lagrange kernel, FitEulerLagrangeGP), "/link" with one weight per link's energies; its
 // posterior is exact on --lagk-rows rows or, with --lagk-inducing=P, the DTC approximation
-// through P inducing states on --lagk-rows rows (hyper-parameters on --lagk-hyper-rows evenly
-// spaced of them either way).
+// through P inducing states on --lagk-rows rows, chosen to cover the states (or, with
+// --lagk-inducing-rule=stride, evenly spaced in time); hyper-parameters on --lagk-hyper-rows
+// evenly spaced of those rows either way.
+// "lagk+fri/defaults" (or "lagk/defaults") is the same model as the product fits it:
+// FitModel with the CLI's defaults (every row, through RobotModelOptions::batch.inducing_states
+// inducing states; hyper-parameters on FitOptions::max_euler_lagrange_evidence_values / N rows).
 // rbd and rbd+pol use the robot's URDF (armature not in it); "/off30" centres rbd's
 // prior (rbd+pol: its prior mean) on inertial parameters each off by up to +-30%.
 //
@@ -90,6 +95,7 @@ struct Flags {
   int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
   int lagk_hyper_rows = 400;  // and its ML-II rows
   int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
+  std::string lagk_inducing_rule = "cover";  // or "stride"
   std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
   double noise = 0.01;
   int tests = 2;
@@ -436,9 +442,9 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     if (slash != std::string::npos) {
       variant = name.substr(slash + 1);
       if (variant != "off30" && variant != "joint" && variant != "chain" &&
-          variant != "chain1") {
+          variant != "chain1" && variant != "defaults") {
         throw std::invalid_argument("--models: unknown variant '" + name +
-                                    "' (expected /off30, /joint, /chain or /chain1)");
+                                    "' (expected /off30, /joint, /chain, /chain1 or /defaults)");
       }
       spec_text = name.substr(0, slash);
       off = variant == "off30";
@@ -505,6 +511,9 @@ int Run(const Flags& flags, int argc, char** argv) {
   }
   EulerLagrangeGPOptions lagk_options;
   lagk_options.inducing_states = f.lagk_inducing;
+  lagk_options.inducing_rule = f.lagk_inducing_rule == "stride"
+                                   ? EulerLagrangeGPOptions::InducingRule::kEvenlySpaced
+                                   : EulerLagrangeGPOptions::InducingRule::kCoverStates;
   lagk_options.sigmas = f.lagk_sigmas;
   std::vector<Row> rows;
   std::printf("| robot | case | model | test RMS / noise per joint | max | mean nMSE | 2σ coverage "
@@ -601,6 +610,9 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--lagk-inducing", &f.lagk_inducing,
                     "lagk's posterior through this many inducing states (DTC; 0: exact)")
       ->check(structgp::AtLeast(0));
+  app.add_option("--lagk-inducing-rule", f.lagk_inducing_rule,
+                 "how lagk's inducing states are chosen: cover (the states) or stride (in time)")
+      ->check(CLI::IsMember({"cover", "stride"}));
   structgp::AddFlag(&app, "--lagk-sigmas", &f.lagk_sigmas,
                     "the sigma grid of lagk's type-II maximum likelihood")
       ->delimiter(',')

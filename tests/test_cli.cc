@@ -157,6 +157,29 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   r = RunCli(dir, {"diagnose", "--model", rbf, "--data", test, "--json", dir.File("rbf.findings.json")});
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(Contains(ReadFile(dir.File("rbf.findings.json")), "Nystrom features")) << r.out;
+
+  // The Euler-Lagrange kernel GP (lagk+fri) on the same short log, through 100 inducing
+  // states: fit, save, predict and evaluate from the file; diagnose says it does not serve it.
+  const std::string lagk = dir.File("lagk.json");
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk+fri", "--lagk-sigmas",
+                   "3,30", "--lagk-ml-values", "200", "--inducing-states", "100", "--out", lagk,
+                   "-q"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "Euler-Lagrange kernel")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "through 100 inducing states")) << r.out;
+  EXPECT_TRUE(Contains(ReadFile(lagk), "\"euler_lagrange\"")) << r.out;
+  r = RunCli(dir, {"predict", "--model", lagk, "--data", test, "--out", dir.File("lagk_pred.csv")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  r = RunCli(dir, {"evaluate", "--model", lagk, "--data", test});
+  EXPECT_EQ(r.code, 0) << r.err;
+  r = RunCli(dir, {"diagnose", "--model", lagk, "--data", test, "--json",
+                   dir.File("lagk.findings.json")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Contains(r.err, "'lagk' is not diagnosed")) << r.err;
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk", "--effects",
+                   "coulomb@2", "--out", dir.File("x.json"), "-q"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Contains(r.err, "no effects")) << r.err;
 }
 
 TEST(Cli, EverySubcommandHasHelp) {

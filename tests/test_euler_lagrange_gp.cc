@@ -15,6 +15,8 @@
 
 #include <gtest/gtest.h>
 
+#include "alloc_counter.h"
+
 #include "structgp/feature/lagrangian_regressor_map.h"
 #include "structgp/model/regressor_gp.h"
 
@@ -117,7 +119,61 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
   EXPECT_LT((ve - vd).cwiseAbs().maxCoeff(), 1e-4 * ve.cwiseAbs().maxCoeff());
   // Five inducing states of 25 do not carry the same posterior (the comparison can fail).
   EXPECT_GT((me - mh).cwiseAbs().maxCoeff(), 1e-2 * me.cwiseAbs().maxCoeff());
-  EXPECT_THROW(dtc.LogMarginalLikelihood(), std::logic_error);
+  // The DTC's evidence through every state is the exact evidence.
+  EXPECT_NEAR(dtc.LogMarginalLikelihood(), exact.LogMarginalLikelihood(),
+              1e-4 * std::abs(exact.LogMarginalLikelihood()));
+  EXPECT_GT(std::abs(half.LogMarginalLikelihood() - exact.LogMarginalLikelihood()), 1e-3);
+
+  // One state at a time with a workspace: the same as the batch prediction, exact and DTC,
+  // and allocation-free.
+  for (const EulerLagrangeGP* gp : {&exact, &half}) {
+    const Matrix& mb = gp == &exact ? me : mh;
+    const Matrix& vb = gp == &exact ? ve : vh;
+    EulerLagrangeGP::Workspace w = gp->MakeWorkspace();
+    Vector mean(n), var(n), x(3 * n);
+    for (Eigen::Index s = 0; s < Xt.rows(); ++s) {
+      x = Xt.row(s).transpose();
+      std::size_t allocations = 0;
+      {
+        testing::AllocationCounter counter;
+        ASSERT_EQ(gp->PredictOne(x, mean, var, w), Status::kOk);
+        allocations = counter.count();
+      }
+      if (testing::CountsEveryAllocation()) EXPECT_EQ(allocations, 0u);
+      EXPECT_LT((mean - mb.row(s).transpose()).cwiseAbs().maxCoeff(),
+                1e-10 * (1.0 + mb.cwiseAbs().maxCoeff()));
+      EXPECT_LT((var - vb.row(s).transpose()).cwiseAbs().maxCoeff(),
+                1e-8 * (1.0 + vb.cwiseAbs().maxCoeff()));
+    }
+    x[0] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_EQ(gp->PredictOne(x, mean, var, w), Status::kInvalidInput);
+  }
+  // A workspace of another posterior is refused, not read past its end.
+  EulerLagrangeGP::Workspace small = half.MakeWorkspace();
+  Vector mean(n), var(n);
+  EXPECT_EQ(exact.PredictOne(Xt.row(0).transpose(), mean, var, small), Status::kInvalidInput);
+}
+
+TEST(EulerLagrangeGP, HyperparametersRoundTripThroughTheCommonType) {
+  std::mt19937 rng(12);
+  for (bool friction : {false, true}) {
+    const EulerLagrangeGPHyperparameters h = RandomHyper(4, friction, &rng);
+    const Hyperparameters common = ToHyperparameters(h);
+    const EulerLagrangeGPHyperparameters back =
+        EulerLagrangeFromHyperparameters(common, 4, friction);
+    EXPECT_NEAR(back.sigma, h.sigma, 1e-12 * h.sigma);
+    EXPECT_LT((back.part_weights - h.part_weights).cwiseAbs().maxCoeff(),
+              1e-12 * h.part_weights.cwiseAbs().maxCoeff());
+    EXPECT_LT((back.noise_std - h.noise_std).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_EQ(back.friction(), friction);
+    if (friction) {
+      EXPECT_LT((back.friction_std - h.friction_std).cwiseAbs().maxCoeff(), 1e-12);
+      EXPECT_NEAR(back.coulomb_width, h.coulomb_width, 1e-15);
+    }
+    // The layout of the other setting, or of another number of joints, is refused by name.
+    EXPECT_THROW(EulerLagrangeFromHyperparameters(common, 4, !friction), std::invalid_argument);
+    EXPECT_THROW(EulerLagrangeFromHyperparameters(common, 3, friction), std::invalid_argument);
+  }
 }
 
 TEST(EulerLagrangeGP, EvidenceGradientMatchesCentralDifferences) {
@@ -195,6 +251,21 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
   }
   EXPECT_GT(pw[n - 1], 0.0);
   EXPECT_GT(pw[2 * n - 1], 0.0);
+
+  // Through 80 inducing states of 200 (DTC), by either rule: still close on held-out states.
+  options.per_link = true;
+  options.inducing_states = 80;
+  for (auto rule : {EulerLagrangeGPOptions::InducingRule::kCoverStates,
+                    EulerLagrangeGPOptions::InducingRule::kEvenlySpaced}) {
+    options.inducing_rule = rule;
+    const EulerLagrangeGPSummary dtc = FitEulerLagrangeGP(X, Y, options, &gp);
+    ASSERT_EQ(dtc.status, Status::kOk) << dtc.message;
+    EXPECT_EQ(dtc.inducing_states, 80);
+    ASSERT_EQ(gp->Predict(Xt, &mean), Status::kOk);
+    const double rms = std::sqrt((mean - truth_t).squaredNorm() / truth_t.size());
+    EXPECT_LT(rms, 0.2 * std::sqrt(truth_t.squaredNorm() / truth_t.size()));
+    EXPECT_TRUE(std::isfinite(gp->LogMarginalLikelihood()));
+  }
 }
 
 TEST(EulerLagrangeGP, RejectsBadInputWithAClearError) {

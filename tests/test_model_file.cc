@@ -419,7 +419,7 @@ TEST_F(ModelFileErrors, WrongFormWithAValidChecksum) {
   ExpectError(Edited([](Json* d) { (*d)["form"] = "function_space"; }),
               "missing field 'function_space'");
   ExpectError(Edited([](Json* d) { (*d)["form"] = "kernel"; }),
-              "field 'form': expected 'weight_space', 'function_space' or 'regressor'");
+              "field 'form': expected 'weight_space', 'function_space', 'regressor' or 'euler_lagrange'");
   ExpectError(Edited([](Json* d) { (*d)["form"] = 1; }), "field 'form'");
 }
 

@@ -21,8 +21,9 @@ class FitCommand : public Command {
                     "and optionally t (s)")
         ->required();
     cmd->add_option("--model", model_,
-                    "Base model: pol, rbf, rbfs, motor or rbd (the rigid-body regressor of "
-                    "--urdf), optionally with +fri (e.g. pol+fri)")
+                    "Base model: pol, rbf, rbfs, motor, rbd (the rigid-body regressor of "
+                    "--urdf), lag or lagk (one GP of all joints on the Euler-Lagrange kernel, "
+                    "no kinematics: for 4-7 joint arms), optionally with +fri (e.g. pol+fri)")
         ->required();
     cmd->add_option("--effects", effects_,
                     "Effects to add, e.g. 'coulomb@2', 'viscous,offset', "
@@ -71,6 +72,23 @@ class FitCommand : public Command {
                     "features than rows) are fitted on at most this many evenly spaced rows; 0 = no limit")
         ->check(CLI::Range(0, 100000000))
         ->capture_default_str();
+    cmd->add_option("--inducing-states", inducing_states_,
+                    "lagk: with more rows, the posterior conditions on every row through this "
+                    "many inducing states covering the training states (0 = exact on every "
+                    "row: O((m N)^3))")
+        ->check(CLI::Range(0, 1000000))
+        ->capture_default_str();
+    cmd->add_option("--lagk-sigmas", options_.euler_lagrange.sigmas,
+                    "lagk with --hyper ml: the sigma grid of the kernel's trigonometric factors "
+                    "(the best evidence wins)")
+        ->delimiter(',')
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--lagk-ml-values", options_.max_euler_lagrange_evidence_values,
+                    "lagk with --hyper ml: torque values (rows x joints) of the evidence; its "
+                    "cost grows with their cube")
+        ->check(CLI::Range(10, 1000000))
+        ->capture_default_str();
     AddRobotFlags(cmd, &robot_);
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
     cmd->add_flag("-v,--verbose", options_.evidence.verbose, "One line per optimiser iteration");
@@ -96,6 +114,7 @@ class FitCommand : public Command {
     RobotModelOptions options;
     options.batch.num_threads = options_.num_threads;
     options.batch.max_kernel_rows = max_kernel_rows_;
+    options.batch.inducing_states = inducing_states_;
     options.rigid_body = LoadRobot(robot_);
     RobotModel model = MakeModel(spec, data.num_joints, options);
     const FitSummary summary = FitModel(data, options_, progress, &model);
@@ -113,6 +132,7 @@ class FitCommand : public Command {
   FitOptions options_;
   RobotFlags robot_;
   int max_kernel_rows_ = kDefaultMaxKernelRows;
+  int inducing_states_ = BatchFitOptions().inducing_states;
   bool quiet_ = false;
 };
 

@@ -401,6 +401,12 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                           int test_multiplier) {
   std::string invalid;
   if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
+  if (model.spec().base == BaseModel::kLagk) {
+    throw std::invalid_argument(
+        "Diagnose: model 'lagk' is not diagnosed yet (its joints share one GP, which the "
+        "candidates' features are not scored against); diagnose a pol, lag or rbd model of the "
+        "same data");
+  }
   if (!model.fitted() || (!model.feature_map() && !model.kernel() && !model.regressor_map())) {
     throw std::invalid_argument("Diagnose: needs a fitted model");
   }

@@ -29,6 +29,8 @@ using internal::Table;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+std::string Number(double value) { return Format("%.6g", value); }
+
 // One fit in progress: the clock, the callback and the summary being filled.
 class Fit {
  public:
@@ -388,6 +390,70 @@ bool RegressorByEvidence(const Matrix& X, const Matrix& Y, const Matrix& Yr, Fit
       });
 }
 
+// The Euler-Lagrange search's options for this model: friction and its Coulomb width from the
+// model, the evidence rows capped at max_euler_lagrange_evidence_values / N.
+EulerLagrangeGPOptions EulerLagrangeOptions(const FitOptions& options, const RobotModel& model) {
+  EulerLagrangeGPOptions o = options.euler_lagrange;
+  o.friction = model.spec().friction;
+  o.coulomb_width = model.options().friction_width;
+  o.inducing_states = 0;
+  const int cap = std::max(1, options.max_euler_lagrange_evidence_values / model.num_joints());
+  o.hyperparameter_rows = o.hyperparameter_rows > 0 ? std::min(o.hyperparameter_rows, cap) : cap;
+  return o;
+}
+
+// lagk by evidence: FitEulerLagrangeGP's search (hyper/euler_lagrange_fit.h) on evenly spaced
+// rows, the best sigma of its grid winning; *h receives the result (ToHyperparameters).
+bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperparameters* h,
+                             std::string* failure) {
+  const RobotModel& model = *fit->model();
+  const int N = model.num_joints();
+  const EulerLagrangeGPOptions o = EulerLagrangeOptions(fit->options(), model);
+  const int used = static_cast<int>(EvenlySpacedRows(X.rows(), o.hyperparameter_rows).size());
+  std::string grid;
+  for (double sigma : o.sigmas) grid += (grid.empty() ? "" : ", ") + Number(sigma);
+  if (!fit->Report(Format("maximising the evidence of the Euler-Lagrange kernel over %d part "
+                          "weights and %d noise levels at sigma in {%s} on %d of %d rows (Ceres "
+                          "LBFGS, O((m N)^3) per evaluation)",
+                          o.per_link ? 2 * N : 2, N, grid.c_str(), used,
+                          static_cast<int>(X.rows())))) {
+    return false;
+  }
+  const EulerLagrangeGPSummary s = FitEulerLagrangeGP(X, Yr, o, nullptr);
+  FitSummary& summary = fit->summary();
+  summary.hyperparameter_rows = s.hyperparameter_rows;
+  if (s.status != Status::kOk) {
+    *failure = "type-II maximum likelihood of the Euler-Lagrange kernel failed: " + s.message;
+    return false;
+  }
+  *h = ToHyperparameters(s.hyperparameters);
+  summary.final_negative_log_evidence = -s.log_evidence;
+  summary.method_description =
+      Format("type-II maximum likelihood over the part weights and each joint's noise, best of "
+             "%d sigmas (sigma = %s)",
+             static_cast<int>(s.sigmas.size()), Number(s.hyperparameters.sigma).c_str());
+  std::string per_sigma;
+  for (size_t k = 0; k < s.sigmas.size(); ++k) {
+    per_sigma += (per_sigma.empty() ? "" : ", ") + Number(s.sigmas[k]) + ": " +
+                 (std::isfinite(s.log_evidence_per_sigma[k])
+                      ? Number(s.log_evidence_per_sigma[k])
+                      : std::string("failed"));
+  }
+  summary.notes.push_back("log evidence at each sigma: " + per_sigma + " nats");
+  if (used < X.rows()) {
+    summary.notes.push_back(Format("hyper-parameters fitted on %d evenly spaced rows of %d", used,
+                                   static_cast<int>(X.rows())));
+  }
+  const double best = s.hyperparameters.sigma;
+  if (o.sigmas.size() > 1 && (best == *std::min_element(o.sigmas.begin(), o.sigmas.end()) ||
+                              best == *std::max_element(o.sigmas.begin(), o.sigmas.end()))) {
+    summary.at_bounds.push_back("log_sigma");
+    summary.notes.push_back("sigma at the edge of its grid (the optimum may lie beyond): " +
+                            Number(best));
+  }
+  return true;
+}
+
 void CheckData(const RobotModel& model, const ConstMatrixRef& states, const ConstMatrixRef& torques,
                const ConstVectorRef& t) {
   const int N = model.num_joints();
@@ -401,7 +467,6 @@ void CheckData(const RobotModel& model, const ConstMatrixRef& states, const Cons
   RequireFinite("FitModel t", t);
 }
 
-std::string Number(double value) { return Format("%.6g", value); }
 
 }  // namespace
 
@@ -532,9 +597,10 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
   if (model == nullptr) throw std::invalid_argument("FitModel: model is null");
   CheckData(*model, states, torques, t);
+  const bool euler_model = model->spec().base == BaseModel::kLagk;
   const bool regressor_model = model->regressor_map() != nullptr;
-  const bool kernel_model = model->feature_map() == nullptr && !regressor_model;
-  if (options.method == HyperparameterMethod::kCrossValidation && regressor_model) {
+  const bool kernel_model = model->feature_map() == nullptr && !regressor_model && !euler_model;
+  if (options.method == HyperparameterMethod::kCrossValidation && (regressor_model || euler_model)) {
     throw std::invalid_argument(
         "cross-validation is not available for '" + ToString(model->spec()) +
         "' (use type-II maximum likelihood, the default, or fixed hyper-parameters)");
@@ -562,19 +628,32 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   bool go_on = true;
   switch (options.method) {
     case HyperparameterMethod::kEvidence:
-      go_on = regressor_model ? RegressorByEvidence(X, Y, Yr, &fit, &h, &failure)
-              : kernel_model  ? KernelByEvidence(X, Y, Yr, &fit, &h, &failure)
-                              : FeatureMapByEvidence(X, Y, Yr, &fit, &h, &failure);
+      go_on = euler_model       ? EulerLagrangeByEvidence(X, Yr, &fit, &h, &failure)
+              : regressor_model ? RegressorByEvidence(X, Y, Yr, &fit, &h, &failure)
+              : kernel_model    ? KernelByEvidence(X, Y, Yr, &fit, &h, &failure)
+                                : FeatureMapByEvidence(X, Y, Yr, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kCrossValidation:
       go_on = FeatureMapByCrossValidation(X, Yr, t, &fit, &h, &failure);
       break;
     case HyperparameterMethod::kFixed:
-      summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";
+      if (euler_model) {
+        const EulerLagrangeGPOptions o = EulerLagrangeOptions(options, *model);
+        std::vector<double> sigmas = o.sigmas;
+        std::sort(sigmas.begin(), sigmas.end());
+        const double sigma = sigmas[sigmas.size() / 2];
+        h = ToHyperparameters(EulerLagrangeStart(X, Yr, o, sigma));
+        summary.method_description =
+            "fixed defaults (sigma " + Number(sigma) +
+            ", the torques' mean square shared by the parts, noise 10% of each joint's RMS)";
+      } else {
+        summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";
+      }
       fit.set_search_message("fixed hyper-parameters: nothing to search");
       break;
   }
-  if (go_on && !fit.aborted() && options.method != HyperparameterMethod::kEvidence &&
+  if (go_on && !fit.aborted() &&
+      (options.method != HyperparameterMethod::kEvidence || euler_model) &&
       options.check.enabled) {
     summary.check = CheckOnHeldOutBlocks(*model, h, X, Y, options.check);
     if (summary.check.ran && !summary.check.passed) {
@@ -693,6 +772,13 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   if (model.feature_map()) {
     os << "features     D = " << model.feature_map()->dim() << " (" << ToString(gp.form())
        << " form)\n";
+  } else if (const EulerLagrangeGP* euler = gp.euler_lagrange()) {
+    os << "features     none: one GP of all joints on the Euler-Lagrange kernel ("
+       << ToString(gp.form()) << " form, " << euler->inputs().rows() << " rows, "
+       << (euler->dtc() ? Format("through %d inducing states",
+                                 static_cast<int>(euler->states().rows()))
+                        : std::string("exact"))
+       << ")\n";
   } else {
     os << "features     none: kernel model (" << ToString(gp.form()) << " form, "
        << gp.function_space()->size() << " stored points)\n";
@@ -711,6 +797,14 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
     const Vector values = layout.Flatten(h);
     for (int i = 0; i < layout.size(); ++i) {
       rows.push_back({layout.names()[static_cast<size_t>(i)], Number(values[i])});
+    }
+  } else if (gp.euler_lagrange() != nullptr) {
+    const auto names = EulerLagrangeParameterNames(N, model.spec().friction);
+    for (Eigen::Index i = 0; i < h.shape.size(); ++i) {
+      rows.push_back({names[static_cast<size_t>(i)], Number(h.shape[i])});
+    }
+    for (int j = 0; j < N; ++j) {
+      rows.push_back({Format("log_noise_std_%d", j + 1), Number(h.log_output_scale[j])});
     }
   } else {
     const Vector theta = model.kernel()->parameters();
@@ -760,6 +854,10 @@ std::string ToJson(const RobotModel& model, const FitSummary& summary) {
     j["size"] = {{"parameters", model.regressor_map()->dim()}};
   } else if (model.feature_map()) {
     j["size"] = {{"features", model.feature_map()->dim()}};
+  } else if (model.fitted() && model.gp().euler_lagrange() != nullptr) {
+    const EulerLagrangeGP& euler = *model.gp().euler_lagrange();
+    j["size"] = {{"rows", euler.inputs().rows()},
+                 {"inducing_states", euler.dtc() ? euler.states().rows() : 0}};
   } else {
     j["size"] = Json::object();
   }

@@ -42,7 +42,98 @@ class NegativeLogEvidence : public ceres::FirstOrderFunction {
   const EulerLagrangeEvidence& evidence_;
 };
 
+// The base hyper-parameters at sigma: zero part weights, unit noise, and friction's prior std
+// the joint's RMS torque, its velocity scale the joint's RMS velocity (data-derived scales).
+EulerLagrangeGPHyperparameters Base(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                    const EulerLagrangeGPOptions& options, double sigma) {
+  const int n = static_cast<int>(Y.cols());
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = sigma;
+  h.noise_std = Vector::Ones(n);
+  h.part_weights = Vector::Zero(2 * n);
+  if (options.friction) {
+    h.coulomb_width = options.coulomb_width;
+    h.friction_std.resize(n);
+    h.friction_velocity_scale.resize(n);
+    for (int j = 0; j < n; ++j) {
+      h.friction_std[j] = std::max(Rms(Y, j), 1e-12);
+      h.friction_velocity_scale[j] = std::max(Rms(X, n + j), 1e-3);
+    }
+  }
+  return h;
+}
+
+// The parts searched: one weight per link's kinetic and potential energy, or link N's only.
+std::vector<int> SearchedParts(int n, bool per_link) {
+  std::vector<int> searched;
+  for (int kind = 0; kind < 2; ++kind) {
+    for (int link = 0; link < n; ++link) {
+      if (per_link || link == n - 1) searched.push_back(kind * n + link);
+    }
+  }
+  return searched;
+}
+
+// The start of the search (log part weights of the searched parts, log noise per joint): the
+// torques' mean square shared by the parts, each at its own mean prior variance, and the noise
+// at 10% of each joint's RMS torque.
+std::vector<double> Start(const EulerLagrangeEvidence& evidence, const ConstMatrixRef& Yh) {
+  const int n = static_cast<int>(Yh.cols());
+  const int P = static_cast<int>(evidence.parts().size());
+  double spread = 0.0;
+  for (int j = 0; j < n; ++j) spread += Rms(Yh, j) * Rms(Yh, j) / n;
+  std::vector<double> p(static_cast<size_t>(P + n));
+  for (int k = 0; k < P; ++k) {
+    p[static_cast<size_t>(k)] =
+        std::log(std::max(spread, 1e-300) / P / std::max(evidence.MeanPartVariance(k), 1e-300));
+  }
+  for (int j = 0; j < n; ++j) {
+    p[static_cast<size_t>(P + j)] = std::log(std::max(0.1 * Rms(Yh, j), 1e-12));
+  }
+  return p;
+}
+
+// h with the searched parts' weights and the noise levels of p (logs).
+EulerLagrangeGPHyperparameters WithParameters(EulerLagrangeGPHyperparameters h,
+                                              const std::vector<int>& searched,
+                                              const std::vector<double>& p) {
+  const int P = static_cast<int>(searched.size());
+  for (int k = 0; k < P; ++k) {
+    h.part_weights[searched[static_cast<size_t>(k)]] = std::exp(p[static_cast<size_t>(k)]);
+  }
+  for (int j = 0; j < h.num_joints(); ++j) h.noise_std[j] = std::exp(p[static_cast<size_t>(P + j)]);
+  return h;
+}
+
+void CheckFitData(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
+  const int n = static_cast<int>(Y.cols());
+  Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
+          "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " torque columns, got " +
+              std::to_string(n));
+  Require(X.cols() == 3 * n && X.rows() == Y.rows() && X.rows() > 0,
+          "expected states m x " + std::to_string(3 * n) + " beside torques m x " +
+              std::to_string(n) + ", got " + std::to_string(X.rows()) + " x " +
+              std::to_string(X.cols()) + " and " + std::to_string(Y.rows()) + " x " +
+              std::to_string(n));
+  Require(X.allFinite() && Y.allFinite(), "non-finite state or torque");
+}
+
 }  // namespace
+
+EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                                  const EulerLagrangeGPOptions& options,
+                                                  double sigma) {
+  options.Validate();
+  CheckFitData(X, Y);
+  Require(sigma > 0.0 && std::isfinite(sigma), "sigma must be finite and > 0");
+  const int n = static_cast<int>(Y.cols());
+  const std::vector<int> rows = EvenlySpacedRows(X.rows(), options.hyperparameter_rows);
+  const Matrix Xh = SelectRows(X, rows), Yh = SelectRows(Y, rows);
+  const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
+  const std::vector<int> searched = SearchedParts(n, options.per_link);
+  const EulerLagrangeEvidence evidence(base, Xh, Yh, searched);
+  return WithParameters(base, searched, Start(evidence, Yh));
+}
 
 void EulerLagrangeGPOptions::Validate() const {
   Require(!sigmas.empty(), "options: no sigma to try");
@@ -62,63 +153,24 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
                                           std::optional<EulerLagrangeGP>* gp) {
   const auto start = std::chrono::steady_clock::now();
   options.Validate();
+  CheckFitData(X, Y);
   const int n = static_cast<int>(Y.cols());
-  Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
-          "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " torque columns, got " +
-              std::to_string(n));
-  Require(X.cols() == 3 * n && X.rows() == Y.rows() && X.rows() > 0,
-          "expected states m x " + std::to_string(3 * n) + " beside torques m x " +
-              std::to_string(n) + ", got " + std::to_string(X.rows()) + " x " +
-              std::to_string(X.cols()) + " and " + std::to_string(Y.rows()) + " x " +
-              std::to_string(n));
-  Require(X.allFinite() && Y.allFinite(), "non-finite state or torque");
-  gp->reset();
+  if (gp != nullptr) gp->reset();
   EulerLagrangeGPSummary summary;
   summary.rows = static_cast<int>(X.rows());
   const std::vector<int> hyper_rows = EvenlySpacedRows(X.rows(), options.hyperparameter_rows);
   summary.hyperparameter_rows = static_cast<int>(hyper_rows.size());
   const Matrix Xh = SelectRows(X, hyper_rows), Yh = SelectRows(Y, hyper_rows);
-
-  // Data-derived scales: friction's prior std is the joint's RMS torque, its velocity scale
-  // the joint's RMS velocity.
-  EulerLagrangeGPHyperparameters h;
-  h.noise_std = Vector::Ones(n);
-  h.part_weights = Vector::Zero(2 * n);
-  if (options.friction) {
-    h.coulomb_width = options.coulomb_width;
-    h.friction_std.resize(n);
-    h.friction_velocity_scale.resize(n);
-    for (int j = 0; j < n; ++j) {
-      h.friction_std[j] = std::max(Rms(Y, j), 1e-12);
-      h.friction_velocity_scale[j] = std::max(Rms(X, n + j), 1e-3);
-    }
-  }
-  std::vector<int> searched;
-  for (int kind = 0; kind < 2; ++kind) {
-    for (int link = 0; link < n; ++link) {
-      if (options.per_link || link == n - 1) searched.push_back(kind * n + link);
-    }
-  }
-  const int P = static_cast<int>(searched.size());
-  double spread = 0.0;
-  for (int j = 0; j < n; ++j) spread += Rms(Yh, j) * Rms(Yh, j) / n;
+  const std::vector<int> searched = SearchedParts(n, options.per_link);
 
   double best = -std::numeric_limits<double>::infinity();
   EulerLagrangeGPHyperparameters best_h;
   for (double sigma : options.sigmas) {
     summary.sigmas.push_back(sigma);
     summary.log_evidence_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
-    h.sigma = sigma;
-    const EulerLagrangeEvidence evidence(h, Xh, Yh, searched);
-    // Start: the torque's spread shared by the parts, noise at 10% of each joint's RMS torque.
-    std::vector<double> p(static_cast<size_t>(P + n));
-    for (int k = 0; k < P; ++k) {
-      p[static_cast<size_t>(k)] =
-          std::log(std::max(spread, 1e-300) / P / std::max(evidence.MeanPartVariance(k), 1e-300));
-    }
-    for (int j = 0; j < n; ++j) {
-      p[static_cast<size_t>(P + j)] = std::log(std::max(0.1 * Rms(Yh, j), 1e-12));
-    }
+    const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
+    const EulerLagrangeEvidence evidence(base, Xh, Yh, searched);
+    std::vector<double> p = Start(evidence, Yh);
     ceres::GradientProblem problem(new NegativeLogEvidence(evidence));
     ceres::GradientProblemSolver::Options o;
     o.max_num_iterations = options.max_iterations;
@@ -129,11 +181,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.log_evidence_per_sigma.back() = -s.final_cost;
     if (-s.final_cost > best) {
       best = -s.final_cost;
-      best_h = h;
-      for (int k = 0; k < P; ++k) {
-        best_h.part_weights[searched[static_cast<size_t>(k)]] = std::exp(p[static_cast<size_t>(k)]);
-      }
-      for (int j = 0; j < n; ++j) best_h.noise_std[j] = std::exp(p[static_cast<size_t>(P + j)]);
+      best_h = WithParameters(base, searched, p);
     }
   }
   auto finish = [&](Status status, std::string message) {
@@ -149,10 +197,13 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
   }
   summary.hyperparameters = best_h;
   summary.log_evidence = best;
+  if (gp == nullptr) return finish(Status::kOk, "");
   EulerLagrangeGP model(best_h);
   Matrix Z;
   if (options.inducing_states > 0 && options.inducing_states < X.rows()) {
-    Z = SelectRows(X, FarthestStateRows(X, options.inducing_states));
+    Z = SelectRows(X, options.inducing_rule == EulerLagrangeGPOptions::InducingRule::kCoverStates
+                         ? FarthestStateRows(X, options.inducing_states)
+                         : EvenlySpacedRows(X.rows(), options.inducing_states));
     summary.inducing_states = static_cast<int>(Z.rows());
   }
   const Status status = model.Condition(X, Y, Z);

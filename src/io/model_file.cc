@@ -165,6 +165,7 @@ Form ParseForm(const std::string& text, bool* ok) {
   if (text == ToString(Form::kWeightSpace)) return Form::kWeightSpace;
   if (text == ToString(Form::kFunctionSpace)) return Form::kFunctionSpace;
   if (text == ToString(Form::kRegressor)) return Form::kRegressor;
+  if (text == ToString(Form::kEulerLagrange)) return Form::kEulerLagrange;
   *ok = false;
   return Form::kAuto;
 }
@@ -442,6 +443,16 @@ std::string ModelFileText(const RobotModel& model) {
     g["count"] = s.statistics.count;
     doc["num_samples"] = static_cast<long long>(s.statistics.count);
     doc["regressor"] = g;
+  } else if (const EulerLagrangeGP* euler = gp.euler_lagrange()) {
+    // The data and the inducing states; the posterior is factorised again on load.
+    RequireFiniteForSave("stored inputs", euler->inputs());
+    RequireFiniteForSave("stored targets", euler->targets());
+    Json e;
+    e["inputs"] = EncodeMatrix(euler->inputs(), false);
+    e["targets"] = EncodeMatrix(euler->targets(), false);
+    if (euler->dtc()) e["inducing"] = EncodeMatrix(euler->states(), false);
+    doc["num_samples"] = static_cast<long long>(euler->inputs().rows());
+    doc["euler_lagrange"] = e;
   } else if (const WeightSpaceGP* ws = gp.weight_space()) {
     const WeightSpaceGPState s = ws->State();
     RequireFiniteForSave("weight-space state", s.covariance_factor);
@@ -580,7 +591,8 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
   bool active_ok = false;
   const Form active = ParseForm(r.String(doc, "", "form"), &active_ok);
   if (!active_ok || active == Form::kAuto) {
-    r.FailField("form", "expected 'weight_space', 'function_space' or 'regressor'");
+    r.FailField("form",
+                "expected 'weight_space', 'function_space', 'regressor' or 'euler_lagrange'");
   }
 
   Hyperparameters hyper;
@@ -622,6 +634,15 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
       state.hyperparameters.shape = kernel_parameters;
     }
 
+    if (active == Form::kEulerLagrange) {
+      const std::string p = "euler_lagrange";
+      const Json& e = r.Get(doc, "", "euler_lagrange");
+      state.inputs = r.DecodedMatrix(e, p, "inputs");
+      state.targets = r.DecodedMatrix(e, p, "targets");
+      if (e.contains("inducing")) state.inducing = r.DecodedMatrix(e, p, "inducing");
+      // The posterior is factorised again (O((m N)^3) exact, O(m N (p N)^2) through p states).
+      return RobotModel::FromState(state);
+    }
     if (active == Form::kRegressor) {
       const std::string p = "regressor";
       const Json& g = r.Get(doc, "", "regressor");

@@ -229,9 +229,13 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     double half_logdet = 0.0;
     for (Eigen::Index r = 0; r < C.rows(); ++r) half_logdet += std::log(llt.matrixL()(r, r));
     log_evidence_ = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
-    factor_ = std::move(llt);
+    factor_ = llt.matrixL();
+    factor_b_.resize(0, 0);
     alpha_ = std::move(alpha);
     states_ = X;
+    states_t_ = X.transpose();
+    inputs_ = X;
+    targets_ = Y;
     dtc_ = false;
     return Status::kOk;
   }
@@ -255,10 +259,21 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   B.selfadjointView<Eigen::Lower>().rankUpdate(V);
   Eigen::LLT<Matrix> llt_b(B);
   if (llt_b.info() != Eigen::Success) return Status::kNotPositiveDefinite;
-  alpha_ = llt.matrixU().solve(llt_b.solve(V * ys));
-  factor_ = std::move(llt);
-  factor_b_ = std::move(llt_b);
+  const Vector vy = V * ys;
+  alpha_ = llt.matrixU().solve(llt_b.solve(vy));
+  // log N(y; 0, Q + S), Q = K_XZ K_ZZ^-1 K_ZX: |Q + S| = |S| |B| and
+  // y^T (Q + S)^-1 y = |S^-1/2 y|^2 - |L_B^-1 V S^-1/2 y|^2.
+  double half_logdet = 0.0;
+  for (Eigen::Index r = 0; r < B.rows(); ++r) half_logdet += std::log(llt_b.matrixL()(r, r));
+  for (Eigen::Index r = 0; r < ys.size(); ++r) half_logdet += std::log(noise[r % n]);
+  const double quad = ys.squaredNorm() - llt_b.matrixL().solve(vy).squaredNorm();
+  log_evidence_ = -0.5 * quad - half_logdet - 0.5 * kLog2Pi * static_cast<double>(ys.size());
+  factor_ = llt.matrixL();
+  factor_b_ = llt_b.matrixL();
   states_ = inducing;
+  states_t_ = inducing.transpose();
+  inputs_ = X;
+  targets_ = Y;
   dtc_ = true;
   return Status::kOk;
 }
@@ -276,17 +291,118 @@ Status EulerLagrangeGP::Predict(const ConstMatrixRef& X, Matrix* mean,
     mean->row(s) = (Ks * alpha_).transpose();
     if (latent_variance == nullptr) continue;
     Kss = Covariance(kernel_, hyper_, X.row(s), X.row(s), false);
-    const Matrix v = factor_.matrixL().solve(Ks.transpose());
+    const Matrix v = factor_.triangularView<Eigen::Lower>().solve(Ks.transpose());
     Vector var = Kss.diagonal() - v.colwise().squaredNorm().transpose();
-    if (dtc_) var += factor_b_.matrixL().solve(v).colwise().squaredNorm().transpose();
+    if (dtc_) {
+      var += factor_b_.triangularView<Eigen::Lower>().solve(v).colwise().squaredNorm().transpose();
+    }
     latent_variance->row(s) = var.cwiseMax(0.0).transpose();
   }
   return Status::kOk;
 }
 
+EulerLagrangeGP::Workspace EulerLagrangeGP::MakeWorkspace() const {
+  if (!conditioned()) throw std::logic_error("EulerLagrangeGP::MakeWorkspace: not conditioned");
+  const Eigen::Index n = num_joints(), pn = states_.rows() * n;
+  return Workspace{Matrix(n, pn), Matrix(pn, n), Matrix(n, n)};
+}
+
+Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
+                                   VectorRef latent_variance, Workspace& w) const {
+  if (!conditioned()) throw std::logic_error("EulerLagrangeGP::PredictOne: not conditioned");
+  const int n = num_joints();
+  const Eigen::Index p = states_.rows();
+  if (x.size() != 3 * n || mean.size() != n || !x.allFinite() ||
+      (latent_variance.size() != 0 && latent_variance.size() != n) || w.ks.rows() != n ||
+      w.ks.cols() != p * n || w.v.rows() != p * n || w.v.cols() != n || w.block.rows() != n ||
+      w.block.cols() != n) {
+    return Status::kInvalidInput;
+  }
+  for (Eigen::Index t = 0; t < p; ++t) {
+    kernel_.Evaluate(x, states_t_.col(t), hyper_.part_weights, w.block);
+    if (hyper_.friction()) {
+      for (int i = 0; i < n; ++i) {
+        w.block(i, i) += FrictionCovariance(hyper_, i, x[n + i], states_t_(n + i, t));
+      }
+    }
+    w.ks.middleCols(t * n, n) = w.block;
+  }
+  mean.noalias() = w.ks * alpha_;
+  if (latent_variance.size() == 0) return Status::kOk;
+  kernel_.Evaluate(x, x, hyper_.part_weights, w.block);
+  if (hyper_.friction()) {
+    for (int i = 0; i < n; ++i) w.block(i, i) += FrictionCovariance(hyper_, i, x[n + i], x[n + i]);
+  }
+  w.v = w.ks.transpose();
+  factor_.triangularView<Eigen::Lower>().solveInPlace(w.v);
+  for (int i = 0; i < n; ++i) latent_variance[i] = w.block(i, i) - w.v.col(i).squaredNorm();
+  if (dtc_) {
+    factor_b_.triangularView<Eigen::Lower>().solveInPlace(w.v);
+    for (int i = 0; i < n; ++i) latent_variance[i] += w.v.col(i).squaredNorm();
+  }
+  latent_variance = latent_variance.cwiseMax(0.0);
+  return Status::kOk;
+}
+
+Hyperparameters ToHyperparameters(const EulerLagrangeGPHyperparameters& h) {
+  h.Validate();
+  const int n = h.num_joints();
+  Hyperparameters out;
+  out.shape.resize(1 + 2 * n + (h.friction() ? 2 * n + 1 : 0));
+  out.shape[0] = std::log(h.sigma);
+  out.shape.segment(1, 2 * n) = h.part_weights.cwiseMax(1e-300).array().log();
+  if (h.friction()) {
+    out.shape.segment(1 + 2 * n, n) = h.friction_std.array().log();
+    out.shape.segment(1 + 3 * n, n) = h.friction_velocity_scale.array().log();
+    out.shape[1 + 4 * n] = std::log(h.coulomb_width);
+  }
+  out.log_block_scale.resize(0);
+  out.log_noise_std = 0.0;
+  out.log_output_scale = h.noise_std.array().log();
+  return out;
+}
+
+std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool friction) {
+  std::vector<std::string> names = {"log_sigma"};
+  for (const char* kind : {"kinetic", "potential"}) {
+    for (int j = 1; j <= num_joints; ++j) {
+      names.push_back(std::string("log_weight_") + kind + "_" + std::to_string(j));
+    }
+  }
+  if (friction) {
+    for (const char* what : {"std", "velocity_scale"}) {
+      for (int j = 1; j <= num_joints; ++j) {
+        names.push_back(std::string("log_friction_") + what + "_" + std::to_string(j));
+      }
+    }
+    names.push_back("log_coulomb_width");
+  }
+  return names;
+}
+
+EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(const Hyperparameters& hyper,
+                                                                int num_joints, bool friction) {
+  const int n = num_joints;
+  Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
+          "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " joints, got " +
+              std::to_string(n));
+  hyper.Validate(1 + 2 * n + (friction ? 2 * n + 1 : 0), 0, n, "EulerLagrangeGP hyper-parameters");
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = std::exp(hyper.shape[0]);
+  h.part_weights = hyper.shape.segment(1, 2 * n).array().exp();
+  h.noise_std = (hyper.log_output_scale.array() + hyper.log_noise_std).exp();
+  if (friction) {
+    h.friction_std = hyper.shape.segment(1 + 2 * n, n).array().exp();
+    h.friction_velocity_scale = hyper.shape.segment(1 + 3 * n, n).array().exp();
+    h.coulomb_width = std::exp(hyper.shape[1 + 4 * n]);
+  }
+  h.Validate();
+  return h;
+}
+
 double EulerLagrangeGP::LogMarginalLikelihood() const {
-  if (!conditioned() || dtc_) {
-    throw std::logic_error("EulerLagrangeGP::LogMarginalLikelihood: needs an exact posterior");
+  if (!conditioned()) {
+    throw std::logic_error("EulerLagrangeGP::LogMarginalLikelihood: not conditioned");
   }
   return log_evidence_;
 }

@@ -19,6 +19,8 @@ const char* ToString(Form form) {
       return "function_space";
     case Form::kRegressor:
       return "regressor";
+    case Form::kEulerLagrange:
+      return "euler_lagrange";
   }
   return "unknown";
 }
@@ -33,6 +35,10 @@ void ValidateBatch(const BatchFitOptions& batch) {
   if (batch.chunk_rows < 1) {
     throw std::invalid_argument("BatchFitOptions::chunk_rows: expected >= 1, got " +
                                 std::to_string(batch.chunk_rows));
+  }
+  if (batch.inducing_states < 0) {
+    throw std::invalid_argument("BatchFitOptions::inducing_states: expected >= 0 (0: exact), got " +
+                                std::to_string(batch.inducing_states));
   }
   if (batch.max_kernel_rows < 0) {
     throw std::invalid_argument(
@@ -127,6 +133,42 @@ GaussianProcess GaussianProcess::FromRegressor(std::shared_ptr<const RegressorMa
   return gp;
 }
 
+GaussianProcess::GaussianProcess(EulerLagrangeGPHyperparameters euler,
+                                 const Hyperparameters& hyper, const BatchFitOptions& batch)
+    : hyper_(hyper),
+      num_outputs_(euler.num_joints()),
+      requested_(Form::kEulerLagrange),
+      active_(Form::kEulerLagrange),
+      batch_(batch) {
+  ValidateBatch(batch_);
+  euler_hyper_ = std::make_unique<EulerLagrangeGPHyperparameters>(std::move(euler));
+}
+
+GaussianProcess GaussianProcess::EulerLagrange(int num_joints, bool friction,
+                                               const Hyperparameters& hyper,
+                                               const BatchFitOptions& batch) {
+  return GaussianProcess(EulerLagrangeFromHyperparameters(hyper, num_joints, friction), hyper,
+                         batch);
+}
+
+GaussianProcess GaussianProcess::EulerLagrangeFromData(
+    int num_joints, bool friction, const Hyperparameters& hyper, const BatchFitOptions& batch,
+    const ConstMatrixRef& inputs, const ConstMatrixRef& targets, const ConstMatrixRef& inducing) {
+  GaussianProcess gp = EulerLagrange(num_joints, friction, hyper, batch);
+  auto model = std::make_unique<EulerLagrangeGP>(*gp.euler_hyper_);
+  const Status status = model->Condition(inputs, targets, inducing);
+  if (status != Status::kOk) {
+    throw std::invalid_argument(
+        std::string("GaussianProcess::EulerLagrangeFromData: the posterior cannot be "
+                    "factorised: ") +
+        ToString(status));
+  }
+  gp.euler_lagrange_ = std::move(model);
+  gp.data_rows_ = inputs.rows();
+  gp.fit_rows_ = inputs.rows();
+  return gp;
+}
+
 GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMap> map,
                                                  const Hyperparameters& hyper, int num_outputs,
                                                  Form form, const BatchFitOptions& batch,
@@ -149,6 +191,7 @@ GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMa
 
 int GaussianProcess::input_dim() const {
   if (regressor_map_) return regressor_map_->input_dim();
+  if (euler_hyper_) return 3 * num_outputs_;
   return map_ ? map_->input_dim() : kernel_->input_dim();
 }
 
@@ -167,6 +210,18 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
     const Status status = model->Fit(stats);
     if (status != Status::kOk) return status;
     regressor_gp_ = std::move(model);
+    data_rows_ = X.rows();
+    fit_rows_ = X.rows();
+    return Status::kOk;
+  }
+  if (euler_hyper_) {
+    auto model = std::make_unique<EulerLagrangeGP>(*euler_hyper_);
+    const int p = batch_.inducing_states;
+    const Status status =
+        p > 0 && X.rows() > p ? model->Condition(X, Y, SelectRows(X, FarthestStateRows(X, p)))
+                              : model->Condition(X, Y);
+    if (status != Status::kOk) return status;
+    euler_lagrange_ = std::move(model);
     data_rows_ = X.rows();
     fit_rows_ = X.rows();
     return Status::kOk;
@@ -223,6 +278,7 @@ GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
     workspace.regressor_scratch = regressor_map_->MakeScratch();
   }
   if (function_space_) workspace.function_space = function_space_->MakeWorkspace();
+  if (euler_lagrange_) workspace.euler_lagrange = euler_lagrange_->MakeWorkspace();
   if (weight_space_) {
     workspace.features.resize(map_->dim());
     workspace.weight_space = weight_space_->MakeWorkspace();
@@ -238,6 +294,10 @@ Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
     return regressor_gp_->Predict(workspace.regressor, mean);
   }
   if (function_space_) return function_space_->Predict(x, mean, workspace.function_space);
+  if (euler_lagrange_) {
+    return euler_lagrange_->PredictOne(x, mean, VectorRef(workspace.features),
+                                       workspace.euler_lagrange);
+  }
   if (!weight_space_ || x.size() != input_dim() || !x.allFinite() ||
       workspace.features.size() != map_->dim()) {
     return Status::kInvalidInput;
@@ -258,6 +318,16 @@ Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef m
   if (function_space_) {
     return function_space_->PredictWithVariance(x, mean, latent_variance, noisy_variance,
                                                 workspace.function_space);
+  }
+  if (euler_lagrange_) {
+    if (latent_variance.size() != num_outputs_ || noisy_variance.size() != num_outputs_) {
+      return Status::kInvalidInput;
+    }
+    const Status status =
+        euler_lagrange_->PredictOne(x, mean, latent_variance, workspace.euler_lagrange);
+    if (status != Status::kOk) return status;
+    noisy_variance = latent_variance + euler_hyper_->noise_std.cwiseAbs2();
+    return Status::kOk;
   }
   if (!weight_space_ || x.size() != input_dim() || !x.allFinite() ||
       workspace.features.size() != map_->dim()) {
@@ -307,6 +377,7 @@ Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
     return Status::kOk;
   }
   if (function_space_) return function_space_->Add(x, y);
+  if (euler_hyper_) return Status::kInvalidInput;  // no online update: refit in batch
   if (!weight_space_ || x.size() != input_dim() || !x.allFinite()) return Status::kInvalidInput;
   map_->Evaluate(x, phi_);
   return weight_space_->Update(phi_, y);
@@ -318,6 +389,7 @@ double GaussianProcess::LogMarginalLikelihood() const {
     return regressor_gp_->LogMarginalLikelihood();
   }
   if (function_space_) return function_space_->LogMarginalLikelihood();
+  if (euler_lagrange_) return euler_lagrange_->LogMarginalLikelihood();
   if (!weight_space_) throw std::logic_error("GaussianProcess: not fitted");
   return weight_space_->LogMarginalLikelihood();
 }

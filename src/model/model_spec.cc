@@ -51,6 +51,7 @@ const char* ToString(BaseModel base) {
     case BaseModel::kMotor: return "motor";
     case BaseModel::kRbd: return "rbd";
     case BaseModel::kLag: return "lag";
+    case BaseModel::kLagk: return "lagk";
   }
   return "unknown";
 }
@@ -58,7 +59,8 @@ const char* ToString(BaseModel base) {
 const std::vector<BaseModel>& BaseModels() {
   static const std::vector<BaseModel> kAll = {BaseModel::kPol,   BaseModel::kRbf,
                                               BaseModel::kRbfs,  BaseModel::kMotor,
-                                              BaseModel::kRbd,   BaseModel::kLag};
+                                              BaseModel::kRbd,   BaseModel::kLag,
+                                              BaseModel::kLagk};
   return kAll;
 }
 
@@ -73,6 +75,9 @@ const char* Describe(BaseModel base) {
       return "the rigid-body regressor of a URDF chain, inertial parameters identified (--urdf)";
     case BaseModel::kLag:
       return "a Lagrangian regressor of a serial chain, kinematics unknown (up to 4 joints)";
+    case BaseModel::kLagk:
+      return "one GP of all joints on the Euler-Lagrange kernel of a serial chain, kinematics "
+             "unknown (any number of joints)";
   }
   return "unknown";
 }

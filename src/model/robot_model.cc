@@ -49,6 +49,19 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
     BuildRegressor();
     return;
   }
+  if (spec_.base == BaseModel::kLagk) {
+    if (!spec_.effects.empty()) {
+      throw std::invalid_argument(
+          "model 'lagk' takes the friction of '+fri' but no effects yet (got '" +
+          ToString(spec_.effects) + "'): add effects to pol, lag or rbd");
+    }
+    if (num_joints_ > kMaxEulerLagrangeJoints) {
+      throw std::invalid_argument("model 'lagk' serves up to " +
+                                  std::to_string(kMaxEulerLagrangeJoints) + " joints, got " +
+                                  std::to_string(num_joints_));
+    }
+    return;
+  }
   const bool pol_by_formula = spec_.base == BaseModel::kPol &&
                               options_.form != Form::kWeightSpace &&
                               (num_joints_ > kMaxPolJoints ||
@@ -234,6 +247,27 @@ Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) cons
         h.log_block_scale[static_cast<Eigen::Index>(b)] = std::log(options_.broad_prior_std);
       }
     }
+  } else if (spec_.base == BaseModel::kLagk) {
+    // Without the states: sigma 10, the torque spread shared by the 2N parts at unit part
+    // variance, noise 10% of each joint's RMS torque, friction's prior std that RMS and its
+    // velocity scale 1 rad/s. (FitModel starts from the states' own scales:
+    // EulerLagrangeStart in hyper/euler_lagrange_fit.h.)
+    EulerLagrangeGPHyperparameters e;
+    const int n = num_joints_;
+    Vector rms(n);
+    for (int j = 0; j < n; ++j) {
+      const double r = Y.rows() > 0 ? std::sqrt(Y.col(j).squaredNorm() / Y.rows()) : 1.0;
+      rms[j] = r > 1e-12 ? r : 1.0;
+    }
+    e.sigma = 10.0;
+    e.part_weights = Vector::Constant(2 * n, rms.squaredNorm() / n / (2.0 * n));
+    e.noise_std = 0.1 * rms;
+    if (spec_.friction) {
+      e.friction_std = rms;
+      e.friction_velocity_scale = Vector::Ones(n);
+      e.coulomb_width = options_.friction_width;
+    }
+    return ToHyperparameters(e);
   } else {
     h.shape = default_kernel_parameters_;
     h.log_block_scale.resize(0);
@@ -256,7 +290,10 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   RequireSize("RobotModel::Fit X", X.cols(), input_dim(), "columns");
   RequireSize("RobotModel::Fit Y", Y.cols(), num_joints_, "columns (joints)");
   std::unique_ptr<GaussianProcess> gp;
-  if (regressor_) {
+  if (spec_.base == BaseModel::kLagk) {
+    gp = std::make_unique<GaussianProcess>(
+        GaussianProcess::EulerLagrange(num_joints_, spec_.friction, hyper, options_.batch));
+  } else if (regressor_) {
     gp = std::make_unique<GaussianProcess>(regressor_, hyper, options_.batch);
   } else if (map_) {
     gp = std::make_unique<GaussianProcess>(map_, hyper, num_joints_, options_.form,
@@ -280,7 +317,11 @@ RobotModelState RobotModel::State() const {
   state.options = options_;
   state.hyperparameters = hyper_;
   state.form = fitted_gp.form();
-  if (const RegressorGP* regressor = fitted_gp.regressor()) {
+  if (const EulerLagrangeGP* euler = fitted_gp.euler_lagrange()) {
+    state.inputs = euler->inputs();
+    state.targets = euler->targets();
+    if (euler->dtc()) state.inducing = euler->states();
+  } else if (const RegressorGP* regressor = fitted_gp.regressor()) {
     state.regressor = regressor->State();
   } else if (const WeightSpaceGP* ws = fitted_gp.weight_space()) {
     state.weight_space = ws->State();
@@ -295,6 +336,28 @@ RobotModel RobotModel::FromState(const RobotModelState& state) {
   RobotModel model(state.spec, state.num_joints, state.options);
   const int N = model.num_joints_;
   const Hyperparameters& hyper = state.hyperparameters;
+  if (state.form == Form::kEulerLagrange || state.spec.base == BaseModel::kLagk) {
+    if (state.form != Form::kEulerLagrange || state.spec.base != BaseModel::kLagk) {
+      throw std::invalid_argument("RobotModel::FromState: model '" + ToString(state.spec) +
+                                  "' and form " + ToString(state.form) + " do not go together");
+    }
+    RequireSize("RobotModel::FromState inputs", state.inputs.cols(), model.input_dim(), "columns");
+    RequireSize("RobotModel::FromState targets", state.targets.cols(), N, "columns (joints)");
+    RequireSize("RobotModel::FromState targets", state.targets.rows(), state.inputs.rows(),
+                "rows (as in inputs)");
+    if (state.inducing.size() > 0) {
+      RequireSize("RobotModel::FromState inducing", state.inducing.cols(), model.input_dim(),
+                  "columns");
+    }
+    RequireFinite("RobotModel::FromState inputs", state.inputs);
+    RequireFinite("RobotModel::FromState targets", state.targets);
+    RequireFinite("RobotModel::FromState inducing", state.inducing);
+    model.gp_ = std::make_unique<GaussianProcess>(GaussianProcess::EulerLagrangeFromData(
+        N, state.spec.friction, hyper, state.options.batch, state.inputs, state.targets,
+        state.inducing));
+    model.hyper_ = hyper;
+    return model;
+  }
   if (state.form == Form::kRegressor || model.regressor_) {
     if (state.form != Form::kRegressor || !model.regressor_) {
       throw std::invalid_argument("RobotModel::FromState: model '" + ToString(state.spec) +

@@ -23,6 +23,7 @@
 
 #include "structgp/core/types.h"
 #include "structgp/fit/fit_check.h"
+#include "structgp/hyper/euler_lagrange_fit.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/model/model_spec.h"
 #include "structgp/model/robot_model.h"
@@ -102,6 +103,13 @@ struct FitOptions {
   /// rows (core/row_subset.h: evenly spaced); the model then uses all rows (up to
   /// RobotModelOptions::batch.max_kernel_rows). 0 = every row.
   int max_evidence_rows = 1000;
+  /// kEvidence and kFixed on lagk models: the search of hyper/euler_lagrange_fit.h (its sigma
+  /// grid, per-link weights, iterations and evidence rows); friction, its Coulomb width and the
+  /// inducing states come from the model (spec "+fri", RobotModelOptions). Its evidence is
+  /// dense in rows x joints, O((m N)^3) per evaluation: it uses at most
+  /// max_euler_lagrange_evidence_values / N evenly spaced rows (400 at six joints).
+  EulerLagrangeGPOptions euler_lagrange;
+  int max_euler_lagrange_evidence_values = 2400;
 
   /// kCrossValidation: number of contiguous folds (>= 2, at most the number of rows).
   int cv_folds = 5;

@@ -28,9 +28,13 @@ struct EulerLagrangeGPOptions {
   double coulomb_width = 0.01;
   /// Type-II maximum likelihood on this many evenly spaced rows (0 or more than m: all).
   int hyperparameter_rows = 800;
-  /// Condition on every row through this many inducing states (DTC) chosen to cover the
-  /// states (FarthestStateRows, core/row_subset.h); 0: exactly.
+  /// Condition on every row through this many inducing states (DTC); 0: exactly.
   int inducing_states = 0;
+  /// How they are chosen: kCoverStates (FarthestStateRows, core/row_subset.h: spread over the
+  /// states) or kEvenlySpaced (EvenlySpacedRows: spread over time, which can alias with a
+  /// periodic trajectory).
+  enum class InducingRule { kCoverStates, kEvenlySpaced };
+  InducingRule inducing_rule = InducingRule::kCoverStates;
   int max_iterations = 80;
   /// Throws std::invalid_argument naming the first bad field.
   void Validate() const;
@@ -48,7 +52,16 @@ struct EulerLagrangeGPSummary {
   double seconds = 0.0;
 };
 
-/// On a failure the summary's status says why and *gp is left empty. Throws
+/// The search's data-derived start at one sigma, without searching: the part weights share
+/// the torques' mean square (each part scaled by its mean prior variance on the evidence rows),
+/// noise 10% of each joint's RMS torque, friction's prior std that RMS and its velocity scale
+/// the joint's RMS velocity. Throws std::invalid_argument as FitEulerLagrangeGP.
+EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                                  const EulerLagrangeGPOptions& options,
+                                                  double sigma);
+
+/// On a failure the summary's status says why and *gp is left empty. With gp null only the
+/// hyper-parameters are chosen (no posterior is computed; inducing_states unused). Throws
 /// std::invalid_argument on bad sizes, non-finite data or bad options.
 EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                           const EulerLagrangeGPOptions& options,

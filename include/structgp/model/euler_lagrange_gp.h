@@ -20,6 +20,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "structgp/core/hyperparameters.h"
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
 #include "structgp/kernel/euler_lagrange_kernel.h"
@@ -40,6 +41,22 @@ struct EulerLagrangeGPHyperparameters {
   /// Throws std::invalid_argument naming the first bad field.
   void Validate() const;
 };
+
+/// The hyper-parameters in the library's common type (core/hyperparameters.h), as RobotModel
+/// and the model file hold them: shape = (log sigma, log part_weights (2N), and with friction
+/// log friction_std (N), log friction_velocity_scale (N), log coulomb_width); no block scales;
+/// joint j's noise std is exp(log_noise_std + log_output_scale[j]) with log_noise_std = 0 (the
+/// regressor form's convention: the joints share one prior, so an output scale scales the
+/// noise only). A zero part weight is written as log(1e-300).
+Hyperparameters ToHyperparameters(const EulerLagrangeGPHyperparameters& hyperparameters);
+/// Names of the shape entries of ToHyperparameters: "log_sigma", "log_weight_kinetic_1".. N,
+/// "log_weight_potential_1".. N, and with friction "log_friction_std_1".. N,
+/// "log_friction_velocity_scale_1".. N, "log_coulomb_width".
+std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool friction);
+/// The inverse for an N-joint model with or without friction. Throws std::invalid_argument
+/// naming the field whose size or value does not fit.
+EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(const Hyperparameters& hyper,
+                                                                int num_joints, bool friction);
 
 /// The exact log evidence of fixed data at one sigma (and friction) as a function of some part
 /// weights and the noise levels: the parts' Gram matrices are computed once, each evaluation
@@ -86,13 +103,35 @@ class EulerLagrangeGP {
                    const ConstMatrixRef& inducing = Matrix());
   bool conditioned() const { return alpha_.size() > 0; }
 
+  /// The states the posterior is held at: the training states (exact) or the inducing states
+  /// (DTC); and the data of the last Condition.
+  const Matrix& states() const { return states_; }
+  bool dtc() const { return dtc_; }
+  const Matrix& inputs() const { return inputs_; }
+  const Matrix& targets() const { return targets_; }
+
+  /// Scratch of the one-state predictions (MakeWorkspace), one per thread.
+  struct Workspace {
+    Matrix ks;     // N x (p N)
+    Matrix v;      // (p N) x N
+    Matrix block;  // N x N
+  };
+  /// Throws std::logic_error when not conditioned. Allocates.
+  Workspace MakeWorkspace() const;
+  /// The posterior mean (N) and, when latent_variance has N entries, the latent variance at one
+  /// state x (3N): allocation-free with a workspace of this posterior, and safe for concurrent
+  /// calls with one workspace each. kInvalidInput on bad sizes, a non-finite state or a
+  /// workspace of another posterior; throws std::logic_error when not conditioned.
+  Status PredictOne(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
+                    Workspace& workspace) const;
+
   /// Posterior mean (m x N) and, when latent_variance is not null, the latent variance (m x N;
   /// add noise_std^2 for the noisy one). kInvalidInput on bad sizes or non-finite states.
   /// Throws std::logic_error when not conditioned.
   Status Predict(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_variance = nullptr) const;
 
-  /// log p(Y) of the exact posterior's data (throws std::logic_error after a DTC condition or
-  /// before any).
+  /// log p(Y) of the conditioned data: exact, or after a DTC condition the DTC's evidence
+  /// log N(y; 0, K_XZ K_ZZ^-1 K_ZX + noise) (throws std::logic_error before any condition).
   double LogMarginalLikelihood() const;
 
   /// log p(Y | X, hyper-parameters), exact, and when gradient is not null its gradient in
@@ -106,11 +145,15 @@ class EulerLagrangeGP {
   EulerLagrangeGPHyperparameters hyper_;
   EulerLagrangeKernel kernel_;
   Matrix states_;               // training states (exact) or inducing states (DTC)
+  Matrix states_t_;             // states_ transposed: one contiguous column per state
+  Matrix inputs_, targets_;     // the data of the last Condition
   Vector alpha_;                // exact: C^-1 y; DTC: L^-T B^-1 V S^-1/2 y
-  Eigen::LLT<Matrix> factor_;   // exact: C; DTC: K_ZZ
-  Eigen::LLT<Matrix> factor_b_;  // DTC: B = I + V V^T, V = L^-1 K_ZX S^-1/2
+  // Lower Cholesky factors as plain matrices (an Eigen::LLT that was never computed holds an
+  // indeterminate status, which a copy or move of the model would read).
+  Matrix factor_;    // exact: of C; DTC: of K_ZZ
+  Matrix factor_b_;  // DTC: of B = I + V V^T, V = L^-1 K_ZX S^-1/2
   bool dtc_ = false;
-  double log_evidence_ = 0.0;   // exact only
+  double log_evidence_ = 0.0;   // of the conditioned data (exact or DTC)
 };
 
 }  // namespace structgp

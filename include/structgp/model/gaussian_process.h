@@ -8,6 +8,8 @@
 /// sample) otherwise or when the kernel has no finite map. Both forms give the same
 /// posterior; the choice can be forced. A third form serves models whose outputs share their
 /// parameters through a regressor (RegressorMap: the rigid-body regressor of `rbd`): RegressorGP.
+/// A fourth is one multi-output GP of all joint torques on the Euler-Lagrange kernel (`lagk`:
+/// EulerLagrangeGP), exact or through inducing states.
 
 #include <memory>
 
@@ -18,6 +20,7 @@
 #include "structgp/kernel/kernel.h"
 #include "structgp/kernel/kernel_hyperparameters.h"
 #include "structgp/feature/regressor_map.h"
+#include "structgp/model/euler_lagrange_gp.h"
 #include "structgp/model/kernel_gp.h"
 #include "structgp/model/regressor_gp.h"
 #include "structgp/model/sufficient_statistics.h"
@@ -30,9 +33,10 @@ enum class Form {
   kWeightSpace,    ///< always the feature form (requires a feature map)
   kFunctionSpace,  ///< always the kernel form
   kRegressor,      ///< a RegressorMap's shared parameters (RegressorGP); the only form of one
+  kEulerLagrange,  ///< one GP of all torques on the Euler-Lagrange kernel (EulerLagrangeGP)
 };
 
-/// "auto", "weight_space", "function_space", "regressor".
+/// "auto", "weight_space", "function_space", "regressor", "euler_lagrange".
 const char* ToString(Form form);
 
 /// Default largest number of rows the function-space form is fitted on. Its batch fit needs
@@ -52,6 +56,11 @@ struct BatchFitOptions {
   /// spaced through the data (row floor(k m / M) for k = 0..M-1), and subsampled() reports
   /// it. 0 means no limit.
   int max_kernel_rows = kDefaultMaxKernelRows;
+  /// Euler-Lagrange form: with more rows than this, the posterior conditions on every row
+  /// through this many inducing states chosen to cover the training states (the deterministic
+  /// training conditional, FarthestStateRows in core/row_subset.h): O(m N (p N)^2) time and
+  /// O(m N p N) memory. Up to it the posterior is exact, O((m N)^3). 0: always exact.
+  int inducing_states = 800;
 };
 
 class GaussianProcess {
@@ -78,6 +87,23 @@ class GaussianProcess {
   static GaussianProcess FromRegressor(std::shared_ptr<const RegressorMap> map,
                                        const Hyperparameters& hyper, const BatchFitOptions& batch,
                                        RegressorGP posterior);
+
+  /// One GP of all num_joints torques on the Euler-Lagrange kernel, with semi-parametric
+  /// friction when `friction` (model/euler_lagrange_gp.h). hyper in the layout of
+  /// ToHyperparameters (euler_lagrange_gp.h). form() is kEulerLagrange; Add is not available
+  /// (kInvalidInput): the posterior is refitted in batch. Throws std::invalid_argument when
+  /// hyper does not fit.
+  static GaussianProcess EulerLagrange(int num_joints, bool friction, const Hyperparameters& hyper,
+                                       const BatchFitOptions& batch = BatchFitOptions());
+  /// The same conditioned on inputs and targets through the given inducing states (empty:
+  /// exactly), without choosing them: how a stored model is restored. Throws
+  /// std::invalid_argument when the sizes do not fit or the posterior cannot be factorised.
+  static GaussianProcess EulerLagrangeFromData(int num_joints, bool friction,
+                                               const Hyperparameters& hyper,
+                                               const BatchFitOptions& batch,
+                                               const ConstMatrixRef& inputs,
+                                               const ConstMatrixRef& targets,
+                                               const ConstMatrixRef& inducing);
 
   /// A weight-space model in the given posterior (WeightSpaceGP::FromState, say), without a
   /// fit: form() is kWeightSpace, data_rows() = fit_rows() = rows. The posterior must have
@@ -119,6 +145,7 @@ class GaussianProcess {
     /// regressor: the map's scratch (KDL solvers for rbd). A copy of a workspace shares it:
     /// give each thread its own MakeWorkspace().
     std::shared_ptr<RegressorMap::Scratch> regressor_scratch;
+    EulerLagrangeGP::Workspace euler_lagrange;  ///< Euler-Lagrange form
   };
   /// A workspace for the fitted form (allocates). After a refit or a Reserve of the function
   /// space, make a new one.
@@ -135,7 +162,8 @@ class GaussianProcess {
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
                              VectorRef noisy_variance) const;
   /// Adds one sample online (O(D^2) or O(m^2)); the function space needs Reserve'd room. The
-  /// regressor form adds the sample to its statistics and refits (O(N P^2 + P^3)).
+  /// regressor form adds the sample to its statistics and refits (O(N P^2 + P^3)). The
+  /// Euler-Lagrange form has no online update: kInvalidInput.
   Status Add(const ConstVectorRef& x, const ConstVectorRef& y);
 
   double LogMarginalLikelihood() const;
@@ -145,10 +173,14 @@ class GaussianProcess {
   const KernelGP* function_space() const { return function_space_.get(); }
   KernelGP* mutable_function_space() { return function_space_.get(); }
   const RegressorGP* regressor() const { return regressor_gp_.get(); }
+  const EulerLagrangeGP* euler_lagrange() const { return euler_lagrange_.get(); }
   /// The regressor of the kRegressor form (null otherwise).
   const std::shared_ptr<const RegressorMap>& regressor_map() const { return regressor_map_; }
 
  private:
+  GaussianProcess(EulerLagrangeGPHyperparameters euler, const Hyperparameters& hyper,
+                  const BatchFitOptions& batch);
+
   std::shared_ptr<const FeatureMap> map_;  // null for a kernel-only model
   Hyperparameters hyper_;
   std::unique_ptr<Kernel> kernel_;  // the kernel of the function-space form
@@ -159,6 +191,9 @@ class GaussianProcess {
   std::unique_ptr<KernelGP> function_space_;
   std::shared_ptr<const RegressorMap> regressor_map_;
   std::unique_ptr<RegressorGP> regressor_gp_;
+  // Euler-Lagrange form: its hyper-parameters (from hyper_) and posterior.
+  std::unique_ptr<EulerLagrangeGPHyperparameters> euler_hyper_;
+  std::unique_ptr<EulerLagrangeGP> euler_lagrange_;
   bool regressor_scratch_ = false;  // the regressor map needs scratch
   BatchFitOptions batch_;
   Eigen::Index data_rows_ = 0;

@@ -5,7 +5,7 @@
 /// What a robot model is made of, parsed once from the text users write at the command line
 /// ("pol+fri" and "coulomb@2,viscous,cogging@3:period=0.3") into typed values.
 ///
-/// Model grammar:  ["rbd+"] base ["+fri"]   with base one of pol, rbf, rbfs, motor, rbd, lag;
+/// Model grammar:  ["rbd+"] base ["+fri"]   with base one of pol, rbf, rbfs, motor, rbd, lag, lagk;
 ///                 "rbd+" only before pol, rbf, rbfs or motor (a URDF's torques beside it).
 /// Effect grammar: item ("," item)*,  item = name ["@" joints] [":" key "=" value (";" key "=" value)*]
 ///                 joints = j ("/" j)*  (1-based; no "@" means every joint)
@@ -24,9 +24,10 @@ enum class BaseModel {
   kMotor,  ///< the linear motor model c1 qdd + c2 qd per joint (eq. 54)
   kRbd,    ///< the rigid-body regressor of a known chain (URDF), inertial parameters identified
   kLag,    ///< the Lagrangian regressor of a serial chain, kinematics unknown (one M(q), V(q))
+  kLagk,   ///< one GP of all joints on the Euler-Lagrange kernel (a prior on each link's energies)
 };
 
-/// "pol", "rbf", "rbfs", "motor", "rbd", "lag".
+/// "pol", "rbf", "rbfs", "motor", "rbd", "lag", "lagk".
 const char* ToString(BaseModel base);
 /// Every base model, in the order above: the one list that parsers, messages and help texts
 /// take their names from.

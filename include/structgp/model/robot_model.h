@@ -26,6 +26,13 @@
 /// chain whose kinematics are not known (feature/lagrangian_regressor_map.h): one M(q) and V(q)
 /// for all joints, in the same regressor form, up to max_explicit_features parameters (N <= 4).
 ///
+/// lagk is one Gaussian process of all joint torques on the Euler-Lagrange kernel
+/// (model/euler_lagrange_gp.h: a prior on each link's kinetic and potential energy, no
+/// kinematics, any N), with the semi-parametric friction of "+fri" in the kernel; it runs in
+/// GaussianProcess's kEulerLagrange form, exactly or through RobotModelOptions::batch.
+/// inducing_states covering the training states. It takes no effects yet, has no component
+/// split and no online update (GaussianProcess::Add refuses).
+///
 /// rbd+pol (rbd+rbf, rbd+rbfs, rbd+motor) is the base with the known chain's inverse dynamics as
 /// its prior mean: the base (and friction, effects) learns tau - tau_URDF(x), and predictions
 /// add tau_URDF(x) back (feature/rigid_body_torque_feature_map.h evaluates it), in whichever form
@@ -113,10 +120,12 @@ struct RobotModelState {
   WeightSpaceGPState weight_space;
   /// Regressor (rbd): its prior, noise and statistics (restored by a deterministic refit).
   RegressorGPState regressor;
-  /// Function space: the stored points (m x input_dim, m x N), whose factorisation
-  /// FromState recomputes (O(m^3), exactly as the fit that stored them did).
+  /// Function space and kEulerLagrange: the stored points (m x input_dim, m x N), whose
+  /// factorisation FromState recomputes (O(m^3), exactly as the fit that stored them did).
   Matrix inputs;
   Matrix targets;
+  /// kEulerLagrange through inducing states: those states (p x 3N); empty when exact.
+  Matrix inducing;
 };
 
 class RobotModel {
