@@ -17,7 +17,11 @@
 
 #include "alloc_counter.h"
 
+#include "structgp/feature/effect_feature_map.h"
+#include "structgp/feature/effects.h"
 #include "structgp/feature/lagrangian_regressor_map.h"
+#include "structgp/feature/sum_feature_map.h"
+#include "structgp/model/weight_space_gp.h"
 #include "structgp/model/regressor_gp.h"
 
 namespace structgp {
@@ -152,6 +156,51 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
   EulerLagrangeGP::Workspace small = half.MakeWorkspace();
   Vector mean(n), var(n);
   EXPECT_EQ(exact.PredictOne(Xt.row(0).transpose(), mean, var, small), Status::kInvalidInput);
+}
+
+// With every part weight zero and no friction, only the effects remain: the posterior is the
+// weight-space GP on the effects' features with joint i's prior and noise scaled by s_i^2.
+TEST(EulerLagrangeGP, EffectsAloneEqualTheWeightSpaceGPOnTheirFeatures) {
+  std::mt19937 rng(21);
+  const int n = 3, m = 40;
+  std::shared_ptr<const FeatureMap> effects = std::make_shared<SumFeatureMap>(
+      std::vector<std::shared_ptr<const FeatureMap>>{
+          std::make_shared<EffectFeatureMap>(n, MakeEffect("coulomb"), std::vector<int>{2}, false),
+          std::make_shared<EffectFeatureMap>(n, MakeEffect("offset"), std::vector<int>{}, false)});
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = 3.0;
+  h.part_weights = Vector::Zero(2 * n);
+  h.effect_prior_variance = Vector::LinSpaced(effects->dim(), 0.5, 2.0);
+  h.effect_scale = Vector::LinSpaced(n, 0.7, 1.9);
+  const double sigma_n = 0.1;
+  h.noise_std = sigma_n * h.effect_scale;
+  const Matrix X = RandomStates(m, n, &rng);
+  std::normal_distribution<double> normal;
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return normal(rng); });
+  EulerLagrangeGP gp(h, effects);
+  ASSERT_EQ(gp.Condition(X, Y), Status::kOk);
+  Matrix Phi;
+  effects->EvaluateRows(X, &Phi);
+  WeightSpaceGP twin(h.effect_prior_variance, sigma_n * sigma_n, n, h.effect_scale);
+  ASSERT_EQ(twin.Fit(Phi, Y), Status::kOk);
+  const Matrix Xt = RandomStates(6, n, &rng);
+  Matrix mean, var;
+  ASSERT_EQ(gp.Predict(Xt, &mean, &var), Status::kOk);
+  WeightSpaceGP::Workspace w = twin.MakeWorkspace();
+  Vector phi(effects->dim()), tm(n), tl(n), tn(n);
+  for (Eigen::Index s = 0; s < Xt.rows(); ++s) {
+    effects->Evaluate(Xt.row(s).transpose(), phi);
+    ASSERT_EQ(twin.PredictWithVariance(phi, tm, tl, tn, w), Status::kOk);
+    EXPECT_LT((mean.row(s).transpose() - tm).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + tm.norm()));
+    EXPECT_LT((var.row(s).transpose() - tl).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + tl.norm()));
+  }
+  EXPECT_NEAR(gp.LogMarginalLikelihood(), twin.LogMarginalLikelihood(),
+              1e-8 * std::abs(twin.LogMarginalLikelihood()));
+  // A map that does not fit the prior variances is refused by name.
+  EulerLagrangeGPHyperparameters bad = h;
+  bad.effect_prior_variance = Vector::Ones(effects->dim() + 1);
+  EXPECT_THROW(EulerLagrangeGP(bad, effects), std::invalid_argument);
+  EXPECT_THROW(EulerLagrangeGP(h, nullptr), std::invalid_argument);
 }
 
 TEST(EulerLagrangeGP, HyperparametersRoundTripThroughTheCommonType) {

@@ -1,8 +1,8 @@
 // The Euler-Lagrange kernel GP as a product model ("lagk", "lagk+fri"): FitModel against the
 // same steps by hand (FitEulerLagrangeGP's search, then EulerLagrangeGP::Condition), the model
 // file round trip (exact and through inducing states), the allocation-free one-state
-// prediction of RobotModel, and the clear refusals of what it does not do (effects, diagnosis,
-// online updates, cross-validation).
+// prediction of RobotModel, effects of the state, and the clear refusals of what it does not do
+// (time effects, diagnosis, online updates, cross-validation).
 
 #include <cmath>
 #include <limits>
@@ -128,6 +128,33 @@ TEST(LagkModel, ModelFileRoundTripsExactAndThroughInducingStates) {
   }
 }
 
+// Effects of the state ("lagk+fri + coulomb@2,offset@3"): fitted, saved and loaded with the
+// same predictions; the effect features change the model (the predictions differ from
+// lagk+fri's at the same kernel hyper-parameters).
+TEST(LagkModel, TakesEffectsOfTheStateThroughFitAndModelFile) {
+  const sim::Dataset& d = Scenario().train;
+  const sim::Dataset& t = Scenario().test;
+  FitOptions options = QuickOptions();
+  options.method = HyperparameterMethod::kFixed;
+  const ModelSpec spec = ParseModelLabel("lagk+fri+coulomb@2,offset@3");
+  const FittedModel fit = FitModel(spec, d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  ASSERT_NE(fit.model.effect_map(), nullptr);
+  EXPECT_EQ(fit.model.effect_prior_variance().size(), fit.model.effect_map()->dim());
+  const RobotModel loaded = ParseModelFile(ModelFileText(fit.model), "lagk_effects.json");
+  Matrix m1, s1, m2, s2;
+  fit.model.PredictRows(t.X, &m1, &s1);
+  loaded.PredictRows(t.X, &m2, &s2);
+  EXPECT_EQ(m1, m2);
+  EXPECT_EQ(s1, s2);
+  const FittedModel plain = FitModel(ParseModelSpec("lagk+fri"), d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(plain.summary.IsUsable()) << plain.summary.message;
+  Matrix m3;
+  plain.model.PredictRows(t.X, &m3);
+  EXPECT_GT((m1 - m3).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_NE(FitReport(fit.model, fit.summary).find("log_effect_scale_3"), std::string::npos);
+}
+
 TEST(LagkModel, OneStatePredictionAllocatesNothingAndMatchesTheRows) {
   const sim::Dataset& d = Scenario().train;
   FitOptions options = QuickOptions();
@@ -168,9 +195,10 @@ TEST(LagkModel, RefusesWhatItDoesNotDoWithAClearError) {
     }
     return std::string("no exception");
   };
-  ModelSpec with_effect = ParseModelSpec("lagk+fri");
-  with_effect.effects = ParseEffectList("coulomb@2");
-  EXPECT_NE(message([&] { RobotModel m(with_effect, 3); }).find("no effects"), std::string::npos);
+  ModelSpec with_drift = ParseModelSpec("lagk+fri");
+  with_drift.effects = ParseEffectList("drift@2");
+  EXPECT_NE(message([&] { RobotModel m(with_drift, 3); }).find("not of the time"),
+            std::string::npos);
 
   FitOptions options = QuickOptions();
   options.method = HyperparameterMethod::kFixed;

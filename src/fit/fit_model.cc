@@ -396,6 +396,8 @@ EulerLagrangeGPOptions EulerLagrangeOptions(const FitOptions& options, const Rob
   EulerLagrangeGPOptions o = options.euler_lagrange;
   o.friction = model.spec().friction;
   o.coulomb_width = model.options().friction_width;
+  o.effects = model.effect_map();
+  o.effect_prior_variance = model.effect_prior_variance();
   o.inducing_states = 0;
   const int cap = std::max(1, options.max_euler_lagrange_evidence_values / model.num_joints());
   o.hyperparameter_rows = o.hyperparameter_rows > 0 ? std::min(o.hyperparameter_rows, cap) : cap;
@@ -799,7 +801,8 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
       rows.push_back({layout.names()[static_cast<size_t>(i)], Number(values[i])});
     }
   } else if (gp.euler_lagrange() != nullptr) {
-    const auto names = EulerLagrangeParameterNames(N, model.spec().friction);
+    const auto names =
+        EulerLagrangeParameterNames(N, model.spec().friction, model.effect_map() != nullptr);
     for (Eigen::Index i = 0; i < h.shape.size(); ++i) {
       rows.push_back({names[static_cast<size_t>(i)], Number(h.shape[i])});
     }

@@ -60,6 +60,11 @@ EulerLagrangeGPHyperparameters Base(const ConstMatrixRef& X, const ConstMatrixRe
       h.friction_velocity_scale[j] = std::max(Rms(X, n + j), 1e-3);
     }
   }
+  if (options.effects) {
+    h.effect_prior_variance = options.effect_prior_variance;
+    h.effect_scale.resize(n);
+    for (int j = 0; j < n; ++j) h.effect_scale[j] = std::max(Rms(Y, j), 1e-12);
+  }
   return h;
 }
 
@@ -131,7 +136,7 @@ EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const
   const Matrix Xh = SelectRows(X, rows), Yh = SelectRows(Y, rows);
   const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
   const std::vector<int> searched = SearchedParts(n, options.per_link);
-  const EulerLagrangeEvidence evidence(base, Xh, Yh, searched);
+  const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
   return WithParameters(base, searched, Start(evidence, Yh));
 }
 
@@ -146,6 +151,9 @@ void EulerLagrangeGPOptions::Validate() const {
   Require(hyperparameter_rows >= 0, "options: hyperparameter_rows must be >= 0");
   Require(inducing_states >= 0, "options: inducing_states must be >= 0");
   Require(max_iterations >= 1, "options: max_iterations must be >= 1");
+  Require((effects != nullptr) == (effect_prior_variance.size() > 0) &&
+              (effects == nullptr || effects->dim() == effect_prior_variance.size()),
+          "options: effects need a map and one prior variance per feature");
 }
 
 EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMatrixRef& Y,
@@ -169,7 +177,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.sigmas.push_back(sigma);
     summary.log_evidence_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
-    const EulerLagrangeEvidence evidence(base, Xh, Yh, searched);
+    const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
     ceres::GradientProblem problem(new NegativeLogEvidence(evidence));
     ceres::GradientProblemSolver::Options o;
@@ -198,7 +206,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
   summary.hyperparameters = best_h;
   summary.log_evidence = best;
   if (gp == nullptr) return finish(Status::kOk, "");
-  EulerLagrangeGP model(best_h);
+  EulerLagrangeGP model(best_h, options.effects);
   Matrix Z;
   if (options.inducing_states > 0 && options.inducing_states < X.rows()) {
     Z = SelectRows(X, options.inducing_rule == EulerLagrangeGPOptions::InducingRule::kCoverStates

@@ -31,6 +31,25 @@ double FrictionCovariance(const EulerLagrangeGPHyperparameters& h, int i, double
   return s * s * (qd * qdp / (v * v) + std::tanh(qd / w) * std::tanh(qdp / w) + 1.0);
 }
 
+// Adds the effects' covariance of X against Z to C ((m N) x (p N)): joint i's diagonal entries
+// gain s_i^2 phi(x)^T diag(lambda) phi(z).
+void AddEffects(const FeatureMap* effects, const EulerLagrangeGPHyperparameters& h,
+                const ConstMatrixRef& X, const ConstMatrixRef& Z, Matrix* C) {
+  if (effects == nullptr) return;
+  const int n = h.num_joints();
+  Matrix Px, Pz;
+  effects->EvaluateRows(X, &Px);
+  effects->EvaluateRows(Z, &Pz);
+  const Matrix G = Px * h.effect_prior_variance.asDiagonal() * Pz.transpose();
+  for (Eigen::Index s = 0; s < X.rows(); ++s) {
+    for (Eigen::Index t = 0; t < Z.rows(); ++t) {
+      for (int i = 0; i < n; ++i) {
+        (*C)(s * n + i, t * n + i) += h.effect_scale[i] * h.effect_scale[i] * G(s, t);
+      }
+    }
+  }
+}
+
 // The Gram parts over X (m x 3N) against Z (p x 3N), (m N) x (p N), row index state * N + i:
 // parts[k] for the kernel part `which[k]` at unit weight, and the friction part in *F (zero
 // when there is none). With symmetric (X = Z) only half the pairs are evaluated.
@@ -67,9 +86,11 @@ void PartGrams(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperpara
   }
 }
 
-// The covariance of the torques at X against Z at the hyper-parameters (kernel + friction).
+// The covariance of the torques at X against Z at the hyper-parameters (kernel + friction +
+// effects).
 Matrix Covariance(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperparameters& h,
-                  const ConstMatrixRef& X, const ConstMatrixRef& Z, bool symmetric) {
+                  const FeatureMap* effects, const ConstMatrixRef& X, const ConstMatrixRef& Z,
+                  bool symmetric) {
   const int n = kernel.num_joints();
   const Eigen::Index m = X.rows(), p = Z.rows();
   Matrix C = Matrix::Zero(m * n, p * n), block(n, n);
@@ -84,6 +105,7 @@ Matrix Covariance(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperp
       if (symmetric && t != s) C.block(t * n, s * n, n, n) = block.transpose();
     }
   }
+  AddEffects(effects, h, X, Z, &C);
   return C;
 }
 
@@ -158,17 +180,35 @@ void EulerLagrangeGPHyperparameters::Validate() const {
     Require(coulomb_width > 0.0 && std::isfinite(coulomb_width),
             "coulomb_width must be finite and > 0");
   }
+  if (effect_prior_variance.size() > 0 || effect_scale.size() > 0) {
+    Require(effect_prior_variance.size() > 0 && effect_scale.size() == n,
+            "effects need their prior variances and " + std::to_string(n) + " scales");
+    Require(effect_prior_variance.allFinite() && (effect_prior_variance.array() >= 0.0).all() &&
+                effect_scale.allFinite() && (effect_scale.array() > 0.0).all(),
+            "effect prior variances must be finite and >= 0, their scales finite and > 0");
+  }
 }
 
-EulerLagrangeGP::EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters)
+EulerLagrangeGP::EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters,
+                                 std::shared_ptr<const FeatureMap> effects)
     : hyper_((hyperparameters.Validate(), std::move(hyperparameters))),
-      kernel_(hyper_.num_joints(), hyper_.sigma) {}
+      kernel_(hyper_.num_joints(), hyper_.sigma),
+      effects_(std::move(effects)) {
+  Require((effects_ != nullptr) == hyper_.effects() &&
+              (effects_ == nullptr || (effects_->dim() == hyper_.effect_prior_variance.size() &&
+                                       effects_->input_dim() == 3 * hyper_.num_joints())),
+          "the effects' map and prior variances do not fit each other or the 3N states");
+}
 
 EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base,
                                              const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                                             std::vector<int> parts)
+                                             std::vector<int> parts, const FeatureMap* effects)
     : n_(base.num_joints()), parts_(std::move(parts)) {
   base.Validate();
+  Require((effects != nullptr) == base.effects() &&
+              (effects == nullptr || (effects->dim() == base.effect_prior_variance.size() &&
+                                      effects->input_dim() == 3 * n_)),
+          "the effects' map and prior variances do not fit each other or the 3N states");
   CheckData(X, Y, n_);
   std::vector<bool> searched(static_cast<size_t>(2 * n_), false);
   for (int p : parts_) {
@@ -192,6 +232,7 @@ EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameter
     PartGrams(kernel, no_friction, X, X, true, rest, &others, &unused);
     for (size_t k = 0; k < rest.size(); ++k) fixed_ += base.part_weights[rest[k]] * others[k];
   }
+  AddEffects(effects, base, X, X, &fixed_);
   y_ = Stack(Y);
 }
 
@@ -220,7 +261,7 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   CheckData(X, Y, n);
   const Vector& noise = hyper_.noise_std;
   if (inducing.size() == 0) {
-    Matrix C = Covariance(kernel_, hyper_, X, X, true);
+    Matrix C = Covariance(kernel_, hyper_, effects_.get(), X, X, true);
     for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += noise[r % n] * noise[r % n];
     Eigen::LLT<Matrix> llt(C);
     if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
@@ -234,6 +275,7 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     alpha_ = std::move(alpha);
     states_ = X;
     states_t_ = X.transpose();
+    SetEffectStates();
     inputs_ = X;
     targets_ = Y;
     dtc_ = false;
@@ -244,11 +286,11 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   Require(AllFinite(inducing), "non-finite inducing state");
   // K_ZZ = L L^T (relative jitter 1e-8), V = L^-1 K_ZX S^-1/2, B = I + V V^T,
   // alpha = L^-T B^-1 V S^-1/2 y.
-  Matrix Kzz = Covariance(kernel_, hyper_, inducing, inducing, true);
+  Matrix Kzz = Covariance(kernel_, hyper_, effects_.get(), inducing, inducing, true);
   Kzz.diagonal().array() += 1e-8 * Kzz.diagonal().mean();
   Eigen::LLT<Matrix> llt(Kzz);
   if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
-  Matrix V = Covariance(kernel_, hyper_, inducing, X, false);  // (p N) x (m N)
+  Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing, X, false);  // (p N) x (m N)
   Vector ys = Stack(Y);
   for (Eigen::Index r = 0; r < V.cols(); ++r) {
     V.col(r) /= noise[r % n];
@@ -272,10 +314,17 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   factor_b_ = llt_b.matrixL();
   states_ = inducing;
   states_t_ = inducing.transpose();
+  SetEffectStates();
   inputs_ = X;
   targets_ = Y;
   dtc_ = true;
   return Status::kOk;
+}
+
+void EulerLagrangeGP::SetEffectStates() {
+  if (!effects_) return;
+  effects_->EvaluateRows(states_, &effect_z_);
+  effect_z_ = effect_z_ * hyper_.effect_prior_variance.asDiagonal();
 }
 
 Status EulerLagrangeGP::Predict(const ConstMatrixRef& X, Matrix* mean,
@@ -285,18 +334,14 @@ Status EulerLagrangeGP::Predict(const ConstMatrixRef& X, Matrix* mean,
   if (X.cols() != 3 * n || !AllFinite(X)) return Status::kInvalidInput;
   mean->resize(X.rows(), n);
   if (latent_variance != nullptr) latent_variance->resize(X.rows(), n);
-  Matrix Kss(n, n);
+  Workspace w = MakeWorkspace();
+  Vector x(3 * n), m(n), v(latent_variance != nullptr ? n : 0);
   for (Eigen::Index s = 0; s < X.rows(); ++s) {
-    const Matrix Ks = Covariance(kernel_, hyper_, X.row(s), states_, false);  // N x (p N)
-    mean->row(s) = (Ks * alpha_).transpose();
-    if (latent_variance == nullptr) continue;
-    Kss = Covariance(kernel_, hyper_, X.row(s), X.row(s), false);
-    const Matrix v = factor_.triangularView<Eigen::Lower>().solve(Ks.transpose());
-    Vector var = Kss.diagonal() - v.colwise().squaredNorm().transpose();
-    if (dtc_) {
-      var += factor_b_.triangularView<Eigen::Lower>().solve(v).colwise().squaredNorm().transpose();
-    }
-    latent_variance->row(s) = var.cwiseMax(0.0).transpose();
+    x = X.row(s).transpose();
+    const Status status = PredictOne(x, m, v, w);
+    if (status != Status::kOk) return status;
+    mean->row(s) = m.transpose();
+    if (latent_variance != nullptr) latent_variance->row(s) = v.transpose();
   }
   return Status::kOk;
 }
@@ -304,7 +349,8 @@ Status EulerLagrangeGP::Predict(const ConstMatrixRef& X, Matrix* mean,
 EulerLagrangeGP::Workspace EulerLagrangeGP::MakeWorkspace() const {
   if (!conditioned()) throw std::logic_error("EulerLagrangeGP::MakeWorkspace: not conditioned");
   const Eigen::Index n = num_joints(), pn = states_.rows() * n;
-  return Workspace{Matrix(n, pn), Matrix(pn, n), Matrix(n, n)};
+  return Workspace{Matrix(n, pn), Matrix(pn, n), Matrix(n, n),
+                   Vector(effects_ ? effects_->dim() : 0), Vector(effects_ ? states_.rows() : 0)};
 }
 
 Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
@@ -315,7 +361,8 @@ Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
   if (x.size() != 3 * n || mean.size() != n || !x.allFinite() ||
       (latent_variance.size() != 0 && latent_variance.size() != n) || w.ks.rows() != n ||
       w.ks.cols() != p * n || w.v.rows() != p * n || w.v.cols() != n || w.block.rows() != n ||
-      w.block.cols() != n) {
+      w.block.cols() != n || w.phi.size() != (effects_ ? effects_->dim() : 0) ||
+      w.g.size() != (effects_ ? p : 0)) {
     return Status::kInvalidInput;
   }
   for (Eigen::Index t = 0; t < p; ++t) {
@@ -327,11 +374,24 @@ Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
     }
     w.ks.middleCols(t * n, n) = w.block;
   }
+  if (effects_) {
+    effects_->Evaluate(x, w.phi);
+    w.g.noalias() = effect_z_ * w.phi;
+    for (Eigen::Index t = 0; t < p; ++t) {
+      for (int i = 0; i < n; ++i) {
+        w.ks(i, t * n + i) += hyper_.effect_scale[i] * hyper_.effect_scale[i] * w.g[t];
+      }
+    }
+  }
   mean.noalias() = w.ks * alpha_;
   if (latent_variance.size() == 0) return Status::kOk;
   kernel_.Evaluate(x, x, hyper_.part_weights, w.block);
   if (hyper_.friction()) {
     for (int i = 0; i < n; ++i) w.block(i, i) += FrictionCovariance(hyper_, i, x[n + i], x[n + i]);
+  }
+  if (effects_) {
+    const double own = w.phi.dot(hyper_.effect_prior_variance.cwiseProduct(w.phi));
+    for (int i = 0; i < n; ++i) w.block(i, i) += hyper_.effect_scale[i] * hyper_.effect_scale[i] * own;
   }
   w.v = w.ks.transpose();
   factor_.triangularView<Eigen::Lower>().solveInPlace(w.v);
@@ -348,7 +408,8 @@ Hyperparameters ToHyperparameters(const EulerLagrangeGPHyperparameters& h) {
   h.Validate();
   const int n = h.num_joints();
   Hyperparameters out;
-  out.shape.resize(1 + 2 * n + (h.friction() ? 2 * n + 1 : 0));
+  const int fri = h.friction() ? 2 * n + 1 : 0;
+  out.shape.resize(1 + 2 * n + fri + (h.effects() ? n : 0));
   out.shape[0] = std::log(h.sigma);
   out.shape.segment(1, 2 * n) = h.part_weights.cwiseMax(1e-300).array().log();
   if (h.friction()) {
@@ -356,13 +417,15 @@ Hyperparameters ToHyperparameters(const EulerLagrangeGPHyperparameters& h) {
     out.shape.segment(1 + 3 * n, n) = h.friction_velocity_scale.array().log();
     out.shape[1 + 4 * n] = std::log(h.coulomb_width);
   }
+  if (h.effects()) out.shape.tail(n) = h.effect_scale.array().log();
   out.log_block_scale.resize(0);
   out.log_noise_std = 0.0;
   out.log_output_scale = h.noise_std.array().log();
   return out;
 }
 
-std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool friction) {
+std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool friction,
+                                                     bool effects) {
   std::vector<std::string> names = {"log_sigma"};
   for (const char* kind : {"kinetic", "potential"}) {
     for (int j = 1; j <= num_joints; ++j) {
@@ -377,16 +440,22 @@ std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool fricti
     }
     names.push_back("log_coulomb_width");
   }
+  if (effects) {
+    for (int j = 1; j <= num_joints; ++j) names.push_back("log_effect_scale_" + std::to_string(j));
+  }
   return names;
 }
 
-EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(const Hyperparameters& hyper,
-                                                                int num_joints, bool friction) {
+EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(
+    const Hyperparameters& hyper, int num_joints, bool friction,
+    const Vector& effect_prior_variance) {
   const int n = num_joints;
   Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
           "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " joints, got " +
               std::to_string(n));
-  hyper.Validate(1 + 2 * n + (friction ? 2 * n + 1 : 0), 0, n, "EulerLagrangeGP hyper-parameters");
+  const bool effects = effect_prior_variance.size() > 0;
+  hyper.Validate(1 + 2 * n + (friction ? 2 * n + 1 : 0) + (effects ? n : 0), 0, n,
+                 "EulerLagrangeGP hyper-parameters");
   EulerLagrangeGPHyperparameters h;
   h.sigma = std::exp(hyper.shape[0]);
   h.part_weights = hyper.shape.segment(1, 2 * n).array().exp();
@@ -395,6 +464,10 @@ EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(const Hyperparam
     h.friction_std = hyper.shape.segment(1 + 2 * n, n).array().exp();
     h.friction_velocity_scale = hyper.shape.segment(1 + 3 * n, n).array().exp();
     h.coulomb_width = std::exp(hyper.shape[1 + 4 * n]);
+  }
+  if (effects) {
+    h.effect_prior_variance = effect_prior_variance;
+    h.effect_scale = hyper.shape.tail(n).array().exp();
   }
   h.Validate();
   return h;

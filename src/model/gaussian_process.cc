@@ -134,6 +134,7 @@ GaussianProcess GaussianProcess::FromRegressor(std::shared_ptr<const RegressorMa
 }
 
 GaussianProcess::GaussianProcess(EulerLagrangeGPHyperparameters euler,
+                                 std::shared_ptr<const FeatureMap> effects,
                                  const Hyperparameters& hyper, const BatchFitOptions& batch)
     : hyper_(hyper),
       num_outputs_(euler.num_joints()),
@@ -142,20 +143,27 @@ GaussianProcess::GaussianProcess(EulerLagrangeGPHyperparameters euler,
       batch_(batch) {
   ValidateBatch(batch_);
   euler_hyper_ = std::make_unique<EulerLagrangeGPHyperparameters>(std::move(euler));
+  euler_effects_ = std::move(effects);
+  EulerLagrangeGP check(*euler_hyper_, euler_effects_);  // the map fits the hyper-parameters
 }
 
 GaussianProcess GaussianProcess::EulerLagrange(int num_joints, bool friction,
                                                const Hyperparameters& hyper,
-                                               const BatchFitOptions& batch) {
-  return GaussianProcess(EulerLagrangeFromHyperparameters(hyper, num_joints, friction), hyper,
-                         batch);
+                                               const BatchFitOptions& batch,
+                                               std::shared_ptr<const FeatureMap> effects,
+                                               const Vector& effect_prior_variance) {
+  return GaussianProcess(
+      EulerLagrangeFromHyperparameters(hyper, num_joints, friction, effect_prior_variance),
+      std::move(effects), hyper, batch);
 }
 
 GaussianProcess GaussianProcess::EulerLagrangeFromData(
     int num_joints, bool friction, const Hyperparameters& hyper, const BatchFitOptions& batch,
-    const ConstMatrixRef& inputs, const ConstMatrixRef& targets, const ConstMatrixRef& inducing) {
-  GaussianProcess gp = EulerLagrange(num_joints, friction, hyper, batch);
-  auto model = std::make_unique<EulerLagrangeGP>(*gp.euler_hyper_);
+    const ConstMatrixRef& inputs, const ConstMatrixRef& targets, const ConstMatrixRef& inducing,
+    std::shared_ptr<const FeatureMap> effects, const Vector& effect_prior_variance) {
+  GaussianProcess gp =
+      EulerLagrange(num_joints, friction, hyper, batch, std::move(effects), effect_prior_variance);
+  auto model = std::make_unique<EulerLagrangeGP>(*gp.euler_hyper_, gp.euler_effects_);
   const Status status = model->Condition(inputs, targets, inducing);
   if (status != Status::kOk) {
     throw std::invalid_argument(
@@ -215,7 +223,7 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
     return Status::kOk;
   }
   if (euler_hyper_) {
-    auto model = std::make_unique<EulerLagrangeGP>(*euler_hyper_);
+    auto model = std::make_unique<EulerLagrangeGP>(*euler_hyper_, euler_effects_);
     const int p = batch_.inducing_states;
     const Status status =
         p > 0 && X.rows() > p ? model->Condition(X, Y, SelectRows(X, FarthestStateRows(X, p)))

@@ -18,6 +18,14 @@
 #include "structgp/kernel/sum_kernel.h"
 
 namespace structgp {
+namespace {
+
+// Friction ("+fri") and the effects of spec as one feature map (null when there are none).
+std::shared_ptr<const FeatureMap> ExtrasMap(const ModelSpec& spec, int num_joints,
+                                            double friction_width, bool with_time,
+                                            std::vector<std::string>* part_names);
+
+}  // namespace
 
 RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOptions& options)
     : spec_(spec), num_joints_(num_joints), options_(options) {
@@ -50,15 +58,25 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
     return;
   }
   if (spec_.base == BaseModel::kLagk) {
-    if (!spec_.effects.empty()) {
+    if (uses_time_) {
       throw std::invalid_argument(
-          "model 'lagk' takes the friction of '+fri' but no effects yet (got '" +
-          ToString(spec_.effects) + "'): add effects to pol, lag or rbd");
+          "model 'lagk' takes effects of the state but not of the time yet (got '" +
+          ToString(spec_.effects) + "'): add time effects to pol, lag or rbd");
     }
     if (num_joints_ > kMaxEulerLagrangeJoints) {
       throw std::invalid_argument("model 'lagk' serves up to " +
                                   std::to_string(kMaxEulerLagrangeJoints) + " joints, got " +
                                   std::to_string(num_joints_));
+    }
+    if (!spec_.effects.empty()) {
+      // The effects alone (friction is in the kernel), with the broad prior of the others.
+      ModelSpec effects_only = spec_;
+      effects_only.friction = false;
+      std::vector<std::string> names;
+      effect_map_ = ExtrasMap(effects_only, num_joints_, options_.friction_width, false, &names);
+      Hyperparameters h = structgp::DefaultHyperparameters(*effect_map_, num_joints_);
+      h.log_block_scale.setConstant(std::log(options_.broad_prior_std));
+      effect_prior_variance_ = PriorVariance(*effect_map_, h);
     }
     return;
   }
@@ -260,6 +278,10 @@ Hyperparameters RobotModel::DefaultHyperparameters(const ConstMatrixRef& Y) cons
       rms[j] = r > 1e-12 ? r : 1.0;
     }
     e.sigma = 10.0;
+    if (effect_map_) {
+      e.effect_prior_variance = effect_prior_variance_;
+      e.effect_scale = rms;
+    }
     e.part_weights = Vector::Constant(2 * n, rms.squaredNorm() / n / (2.0 * n));
     e.noise_std = 0.1 * rms;
     if (spec_.friction) {
@@ -292,7 +314,8 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   std::unique_ptr<GaussianProcess> gp;
   if (spec_.base == BaseModel::kLagk) {
     gp = std::make_unique<GaussianProcess>(
-        GaussianProcess::EulerLagrange(num_joints_, spec_.friction, hyper, options_.batch));
+        GaussianProcess::EulerLagrange(num_joints_, spec_.friction, hyper, options_.batch,
+                                       effect_map_, effect_prior_variance_));
   } else if (regressor_) {
     gp = std::make_unique<GaussianProcess>(regressor_, hyper, options_.batch);
   } else if (map_) {
@@ -354,7 +377,7 @@ RobotModel RobotModel::FromState(const RobotModelState& state) {
     RequireFinite("RobotModel::FromState inducing", state.inducing);
     model.gp_ = std::make_unique<GaussianProcess>(GaussianProcess::EulerLagrangeFromData(
         N, state.spec.friction, hyper, state.options.batch, state.inputs, state.targets,
-        state.inducing));
+        state.inducing, model.effect_map_, model.effect_prior_variance_));
     model.hyper_ = hyper;
     return model;
   }

@@ -7,6 +7,7 @@
 /// grid on evenly spaced rows, the best evidence winning; then the posterior on every row,
 /// exactly or through inducing states that cover the training states (DTC). Options -> Summary.
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +27,10 @@ struct EulerLagrangeGPOptions {
   /// joint's RMS velocity.
   bool friction = false;
   double coulomb_width = 0.01;
+  /// Effects (model/euler_lagrange_gp.h): their features of the 3N states and each feature's
+  /// prior variance (both empty: none); each joint's scale s_i is its RMS torque.
+  std::shared_ptr<const FeatureMap> effects;
+  Vector effect_prior_variance;
   /// Type-II maximum likelihood on this many evenly spaced rows (0 or more than m: all).
   int hyperparameter_rows = 800;
   /// Condition on every row through this many inducing states (DTC); 0: exactly.

@@ -8,6 +8,10 @@
 /// joints' torques are derived from. No kinematic parameters. Optional semi-parametric friction
 /// per joint: bases qd_i / v_i, tanh(qd_i / width) and 1, independent, prior std s_i.
 ///
+/// Optional effects (feature/effects.h, as RobotModel builds them: features of the states shared
+/// by the joints, each joint with its own weights): the covariance of joints i and j gains
+/// delta_ij s_i^2 phi(x)^T diag(lambda) phi(x'), a broad fixed prior.
+///
 /// Hyper-parameters: sigma of the kernel's trigonometric factors, the 2N part weights, one noise
 /// std per joint (FitEulerLagrangeGP in hyper/euler_lagrange_fit.h chooses them). The posterior
 /// is exact, or through inducing states the deterministic training conditional (DTC):
@@ -15,6 +19,7 @@
 ///
 /// Inputs x = (q, qd, qdd) as rows of X (m x 3N); torques Y (m x N).
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -23,6 +28,7 @@
 #include "structgp/core/hyperparameters.h"
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
+#include "structgp/feature/feature_map.h"
 #include "structgp/kernel/euler_lagrange_kernel.h"
 
 namespace structgp {
@@ -35,28 +41,39 @@ struct EulerLagrangeGPHyperparameters {
   Vector friction_std;
   Vector friction_velocity_scale;
   double coulomb_width = 0.01;  // rad/s, of tanh(qd / width)
+  /// Effects: empty (none), or the prior variance lambda of each effect feature with each
+  /// joint's scale s_i > 0.
+  Vector effect_prior_variance;
+  Vector effect_scale;
 
   int num_joints() const { return static_cast<int>(noise_std.size()); }
   bool friction() const { return friction_std.size() > 0; }
+  bool effects() const { return effect_prior_variance.size() > 0; }
   /// Throws std::invalid_argument naming the first bad field.
   void Validate() const;
 };
 
 /// The hyper-parameters in the library's common type (core/hyperparameters.h), as RobotModel
 /// and the model file hold them: shape = (log sigma, log part_weights (2N), and with friction
-/// log friction_std (N), log friction_velocity_scale (N), log coulomb_width); no block scales;
+/// log friction_std (N), log friction_velocity_scale (N), log coulomb_width, and with effects
+/// log effect_scale (N)); no block scales (the effects' prior variances are the model's, not
+/// hyper-parameters);
 /// joint j's noise std is exp(log_noise_std + log_output_scale[j]) with log_noise_std = 0 (the
 /// regressor form's convention: the joints share one prior, so an output scale scales the
 /// noise only). A zero part weight is written as log(1e-300).
 Hyperparameters ToHyperparameters(const EulerLagrangeGPHyperparameters& hyperparameters);
-/// Names of the shape entries of ToHyperparameters: "log_sigma", "log_weight_kinetic_1".. N,
-/// "log_weight_potential_1".. N, and with friction "log_friction_std_1".. N,
-/// "log_friction_velocity_scale_1".. N, "log_coulomb_width".
-std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool friction);
+/// ToHyperparameters: "log_sigma", "log_weight_kinetic_1".. N,
+/// "log_weight_potential_1".. N, with friction "log_friction_std_1".. N,
+/// "log_friction_velocity_scale_1".. N, "log_coulomb_width", and with effects
+/// "log_effect_scale_1".. N.
+std::vector<std::string> EulerLagrangeParameterNames(int num_joints, bool friction,
+                                                     bool effects = false);
 /// The inverse for an N-joint model with or without friction. Throws std::invalid_argument
 /// naming the field whose size or value does not fit.
-EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(const Hyperparameters& hyper,
-                                                                int num_joints, bool friction);
+/// effect_prior_variance: the effects' (empty: none).
+EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(
+    const Hyperparameters& hyper, int num_joints, bool friction,
+    const Vector& effect_prior_variance = Vector());
 
 /// The exact log evidence of fixed data at one sigma (and friction) as a function of some part
 /// weights and the noise levels: the parts' Gram matrices are computed once, each evaluation
@@ -67,7 +84,8 @@ class EulerLagrangeEvidence {
   /// parts: indices into the kernel's parts (0..2N-1), each once. Throws std::invalid_argument
   /// on bad sizes, non-finite data or a bad part index.
   EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base, const ConstMatrixRef& X,
-                        const ConstMatrixRef& Y, std::vector<int> parts);
+                        const ConstMatrixRef& Y, std::vector<int> parts,
+                        const FeatureMap* effects = nullptr);
 
   /// (log w of each searched part, log noise std of each joint).
   int num_parameters() const { return static_cast<int>(parts_.size()) + n_; }
@@ -89,11 +107,14 @@ class EulerLagrangeEvidence {
 
 class EulerLagrangeGP {
  public:
-  /// Throws std::invalid_argument (Validate).
-  explicit EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters);
+  /// Throws std::invalid_argument (Validate; effects: a map of 3N inputs whose dimension is
+  /// the number of effect prior variances, null exactly when there are none).
+  explicit EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters,
+                           std::shared_ptr<const FeatureMap> effects = nullptr);
 
   const EulerLagrangeGPHyperparameters& hyperparameters() const { return hyper_; }
   const EulerLagrangeKernel& kernel() const { return kernel_; }
+  const std::shared_ptr<const FeatureMap>& effects() const { return effects_; }
   int num_joints() const { return hyper_.num_joints(); }
 
   /// The posterior on (X, Y): exact when inducing is empty, else DTC through the inducing
@@ -115,6 +136,8 @@ class EulerLagrangeGP {
     Matrix ks;     // N x (p N)
     Matrix v;      // (p N) x N
     Matrix block;  // N x N
+    Vector phi;    // the effects' features (D)
+    Vector g;      // p
   };
   /// Throws std::logic_error when not conditioned. Allocates.
   Workspace MakeWorkspace() const;
@@ -142,8 +165,12 @@ class EulerLagrangeGP {
                             Vector* gradient = nullptr);
 
  private:
+  void SetEffectStates();
+
   EulerLagrangeGPHyperparameters hyper_;
   EulerLagrangeKernel kernel_;
+  std::shared_ptr<const FeatureMap> effects_;
+  Matrix effect_z_;             // effects: phi(z_t)^T diag(lambda), p x D
   Matrix states_;               // training states (exact) or inducing states (DTC)
   Matrix states_t_;             // states_ transposed: one contiguous column per state
   Matrix inputs_, targets_;     // the data of the last Condition

@@ -89,12 +89,15 @@ class GaussianProcess {
                                        RegressorGP posterior);
 
   /// One GP of all num_joints torques on the Euler-Lagrange kernel, with semi-parametric
-  /// friction when `friction` (model/euler_lagrange_gp.h). hyper in the layout of
+  /// friction when `friction` and the effects' features with their prior variances when
+  /// `effects` is not null (model/euler_lagrange_gp.h). hyper in the layout of
   /// ToHyperparameters (euler_lagrange_gp.h). form() is kEulerLagrange; Add is not available
   /// (kInvalidInput): the posterior is refitted in batch. Throws std::invalid_argument when
   /// hyper does not fit.
   static GaussianProcess EulerLagrange(int num_joints, bool friction, const Hyperparameters& hyper,
-                                       const BatchFitOptions& batch = BatchFitOptions());
+                                       const BatchFitOptions& batch = BatchFitOptions(),
+                                       std::shared_ptr<const FeatureMap> effects = nullptr,
+                                       const Vector& effect_prior_variance = Vector());
   /// The same conditioned on inputs and targets through the given inducing states (empty:
   /// exactly), without choosing them: how a stored model is restored. Throws
   /// std::invalid_argument when the sizes do not fit or the posterior cannot be factorised.
@@ -103,7 +106,9 @@ class GaussianProcess {
                                                const BatchFitOptions& batch,
                                                const ConstMatrixRef& inputs,
                                                const ConstMatrixRef& targets,
-                                               const ConstMatrixRef& inducing);
+                                               const ConstMatrixRef& inducing,
+                                               std::shared_ptr<const FeatureMap> effects = nullptr,
+                                               const Vector& effect_prior_variance = Vector());
 
   /// A weight-space model in the given posterior (WeightSpaceGP::FromState, say), without a
   /// fit: form() is kWeightSpace, data_rows() = fit_rows() = rows. The posterior must have
@@ -178,8 +183,8 @@ class GaussianProcess {
   const std::shared_ptr<const RegressorMap>& regressor_map() const { return regressor_map_; }
 
  private:
-  GaussianProcess(EulerLagrangeGPHyperparameters euler, const Hyperparameters& hyper,
-                  const BatchFitOptions& batch);
+  GaussianProcess(EulerLagrangeGPHyperparameters euler, std::shared_ptr<const FeatureMap> effects,
+                  const Hyperparameters& hyper, const BatchFitOptions& batch);
 
   std::shared_ptr<const FeatureMap> map_;  // null for a kernel-only model
   Hyperparameters hyper_;
@@ -194,6 +199,7 @@ class GaussianProcess {
   // Euler-Lagrange form: its hyper-parameters (from hyper_) and posterior.
   std::unique_ptr<EulerLagrangeGPHyperparameters> euler_hyper_;
   std::unique_ptr<EulerLagrangeGP> euler_lagrange_;
+  std::shared_ptr<const FeatureMap> euler_effects_;
   bool regressor_scratch_ = false;  // the regressor map needs scratch
   BatchFitOptions batch_;
   Eigen::Index data_rows_ = 0;

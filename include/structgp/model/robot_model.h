@@ -30,8 +30,10 @@
 /// (model/euler_lagrange_gp.h: a prior on each link's kinetic and potential energy, no
 /// kinematics, any N), with the semi-parametric friction of "+fri" in the kernel; it runs in
 /// GaussianProcess's kEulerLagrange form, exactly or through RobotModelOptions::batch.
-/// inducing_states covering the training states. It takes no effects yet, has no component
-/// split and no online update (GaussianProcess::Add refuses).
+/// inducing_states covering the training states. Effects that do not use the time enter as
+/// features with the broad prior of the other models, shared by the joints (each joint's scale
+/// its RMS torque, fitted); it has no component split, no coefficients and no online update
+/// (GaussianProcess::Add refuses).
 ///
 /// rbd+pol (rbd+rbf, rbd+rbfs, rbd+motor) is the base with the known chain's inverse dynamics as
 /// its prior mean: the base (and friction, effects) learns tau - tau_URDF(x), and predictions
@@ -195,6 +197,11 @@ class RobotModel {
   /// A workspace for the fitted model (allocates). Throws std::logic_error when not fitted.
   Workspace MakeWorkspace() const;
 
+  /// lagk with effects: their features of the 3N states and each feature's prior variance
+  /// (null and empty otherwise).
+  const std::shared_ptr<const FeatureMap>& effect_map() const { return effect_map_; }
+  const Vector& effect_prior_variance() const { return effect_prior_variance_; }
+
   /// rbd+<base>: the fixed prior mean, the known chain's torques (null otherwise).
   const std::shared_ptr<const RigidBodyTorqueFeatureMap>& prior_mean() const {
     return prior_mean_;
@@ -263,6 +270,8 @@ class RobotModel {
   std::shared_ptr<const FeatureMap> map_;
   std::shared_ptr<const SemiParametricRegressorMap> regressor_;
   std::shared_ptr<const RigidBodyTorqueFeatureMap> prior_mean_;
+  std::shared_ptr<const FeatureMap> effect_map_;  // lagk
+  Vector effect_prior_variance_;                  // lagk
   std::vector<Part> parts_;                                   // component ranges in phi
   std::vector<std::pair<std::string, int>> parametric_names_;  // feature name -> index
   std::unique_ptr<Kernel> kernel_;  // at hyper_.shape once fitted
