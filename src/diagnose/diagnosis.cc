@@ -20,6 +20,7 @@
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/regressor_feature_map.h"
 #include "structgp/kernel/nystrom_feature_map.h"
+#include "structgp/core/row_subset.h"
 #include "structgp/core/segments.h"
 #include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
@@ -401,13 +402,9 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                           int test_multiplier) {
   std::string invalid;
   if (!options.IsValid(&invalid)) throw std::invalid_argument("Diagnose: " + invalid);
-  if (model.spec().base == BaseModel::kLagk) {
-    throw std::invalid_argument(
-        "Diagnose: model 'lagk' is not diagnosed yet (its joints share one GP, which the "
-        "candidates' features are not scored against); diagnose a pol, lag or rbd model of the "
-        "same data");
-  }
-  if (!model.fitted() || (!model.feature_map() && !model.kernel() && !model.regressor_map())) {
+  const bool euler = model.fitted() && model.gp().euler_lagrange() != nullptr;
+  if (!model.fitted() ||
+      (!model.feature_map() && !model.kernel() && !model.regressor_map() && !euler)) {
     throw std::invalid_argument("Diagnose: needs a fitted model");
   }
   const int N = model.num_joints();
@@ -442,6 +439,23 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     base_hyper = h;
     out.features = "each joint's row of the model's rigid-body regressor (P = " +
                    std::to_string(base_map->dim()) + "), one joint at a time";
+  } else if (euler) {
+    if (only_joint < 1) throw std::logic_error("Diagnose: a lagk model is diagnosed per joint");
+    // Nystrom features of this joint's torque under the model's prior, on inducing states
+    // covering the rows: p states of N torques each.
+    const EulerLagrangeGP& gp = *model.gp().euler_lagrange();
+    const int p = std::max(1, std::min(options.nystrom_features / N, m / 2));
+    const Matrix Z = SelectRows(X.leftCols(3 * N), FarthestStateRows(X.leftCols(3 * N), p));
+    base_map = std::make_shared<EulerLagrangeJointFeatureMap>(gp, Z, only_joint - 1);
+    Hyperparameters h = DefaultHyperparameters(*base_map, N);
+    // The features carry the prior's scale: unit output scales, the joint's own noise.
+    h.log_noise_std = std::log(gp.hyperparameters().noise_std[only_joint - 1]);
+    h.log_output_scale = Vector::Zero(N);
+    base_hyper = h;
+    out.features = "Nystrom features of each joint's torque under the model's Euler-Lagrange "
+                   "prior on " + std::to_string(Z.rows()) +
+                   " inducing states covering the rows (D = " + std::to_string(base_map->dim()) +
+                   "), one joint at a time";
   } else {
     const Matrix Z = SelectInducingStates(*model.kernel(), X,
                                           std::min(options.nystrom_features, m / 2));
@@ -1234,10 +1248,11 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   const Vector& ts = with_training ? tu : t;
   try {
     Diagnosis out;
-    if (!model.regressor_map()) {
+    if (!model.regressor_map() && !(model.fitted() && model.gp().euler_lagrange() != nullptr)) {
       out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 0, 1);
     } else {
-      // One joint at a time against its own row of the regressor; the suggestions merged.
+      // One joint at a time against its own row of the regressor (lagk: Nystrom features of its
+      // torque); the suggestions merged.
       out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 1, N);
       for (int j = 2; j <= N && out.status == DiagnosisStatus::kOk; ++j) {
         Diagnosis joint = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, j, N);

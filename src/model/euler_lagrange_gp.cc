@@ -480,4 +480,68 @@ double EulerLagrangeGP::LogMarginalLikelihood() const {
   return log_evidence_;
 }
 
+EulerLagrangeJointFeatureMap::EulerLagrangeJointFeatureMap(const EulerLagrangeGP& gp,
+                                                           const ConstMatrixRef& Z, int joint)
+    : n_(gp.num_joints()),
+      joint_(joint),
+      hyper_(gp.hyperparameters()),
+      kernel_(gp.kernel()),
+      effects_(gp.effects()) {
+  Require(joint >= 0 && joint < n_, "joint " + std::to_string(joint) + " out of range [0, " +
+                                        std::to_string(n_) + ")");
+  Require(Z.rows() >= 1 && Z.cols() == 3 * n_ && Z.allFinite(),
+          "inducing states: expected p >= 1 finite rows of " + std::to_string(3 * n_) +
+              " columns, got " + std::to_string(Z.rows()) + " x " + std::to_string(Z.cols()));
+  Require(!effects_ || effects_->dim() <= kMaxJointMapEffectFeatures,
+          "at most " + std::to_string(kMaxJointMapEffectFeatures) + " effect features, got " +
+              std::to_string(effects_ ? effects_->dim() : 0));
+  states_t_ = Z.transpose();
+  if (effects_) {
+    effects_->EvaluateRows(Z, &effect_z_);
+    effect_z_ = effect_z_ * hyper_.effect_prior_variance.asDiagonal();
+  }
+  Matrix K = Covariance(kernel_, hyper_, effects_.get(), Z, Z, true);
+  const double mean_diagonal = K.diagonal().mean();
+  for (double jitter : {1e-8, 1e-6, 1e-4}) {
+    Matrix Kj = K;
+    Kj.diagonal().array() += jitter * (mean_diagonal > 0.0 ? mean_diagonal : 1.0);
+    const Eigen::LLT<Matrix> llt(Kj);
+    if (llt.info() == Eigen::Success) {
+      factor_ = llt.matrixL();
+      return;
+    }
+  }
+  throw std::runtime_error(
+      "EulerLagrangeJointFeatureMap: the covariance at the inducing states cannot be factorised");
+}
+
+void EulerLagrangeJointFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
+  using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxEulerLagrangeJoints,
+                              kMaxEulerLagrangeJoints>;
+  Require(x.size() == 3 * n_ && phi.size() == dim(), "expected a state of " +
+                                                         std::to_string(3 * n_) + " and " +
+                                                         std::to_string(dim()) + " features");
+  const int n = n_, j = joint_;
+  Block block(n, n);
+  const Eigen::Index p = states_t_.cols();
+  for (Eigen::Index t = 0; t < p; ++t) {
+    kernel_.Evaluate(x, states_t_.col(t), hyper_.part_weights, block);
+    for (int i = 0; i < n; ++i) phi[t * n + i] = block(j, i);
+    if (hyper_.friction()) {
+      phi[t * n + j] += FrictionCovariance(hyper_, j, x[n + j], states_t_(n + j, t));
+    }
+  }
+  if (effects_) {
+    Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJointMapEffectFeatures, 1> e(effects_->dim());
+    effects_->Evaluate(x, e);
+    const double s2 = hyper_.effect_scale[j] * hyper_.effect_scale[j];
+    for (Eigen::Index t = 0; t < p; ++t) phi[t * n + j] += s2 * effect_z_.row(t).dot(e);
+  }
+  factor_.triangularView<Eigen::Lower>().solveInPlace(phi);
+}
+
+std::vector<FeatureBlock> EulerLagrangeJointFeatureMap::blocks() const {
+  return {FeatureBlock{"euler_lagrange_nystrom", 0, dim()}};
+}
+
 }  // namespace structgp

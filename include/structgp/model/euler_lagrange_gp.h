@@ -183,6 +183,40 @@ class EulerLagrangeGP {
   double log_evidence_ = 0.0;   // of the conditioned data (exact or DTC)
 };
 
+/// Nystrom features of one joint's torque under an EulerLagrangeGP's prior (kernel, friction
+/// and effects at its hyper-parameters): phi(x) = L^-1 k_j(x), where k_j(x) holds the
+/// covariance of joint j's torque at x with every joint's torque at the inducing states Z
+/// (p N entries) and L L^T is their covariance plus a relative jitter. phi(x)^T phi(x') is the
+/// Nystrom approximation of the covariance of joint j's torques at x and x'. This is how the
+/// diagnosis scores candidate effects against a lagk model, one joint at a time.
+class EulerLagrangeJointFeatureMap : public FeatureMap {
+ public:
+  /// Most effect features it evaluates without allocating (a stack buffer).
+  static constexpr int kMaxJointMapEffectFeatures = 256;
+
+  /// gp: its hyper-parameters and effects are copied (it need not be conditioned). Z: p x 3N
+  /// inducing states; joint 0-based; at most kMaxJointMapEffectFeatures effect features. Throws std::invalid_argument on bad sizes or values,
+  /// std::runtime_error when the inducing covariance cannot be factorised.
+  EulerLagrangeJointFeatureMap(const EulerLagrangeGP& gp, const ConstMatrixRef& Z, int joint);
+
+  int input_dim() const override { return 3 * n_; }
+  int dim() const override { return static_cast<int>(factor_.rows()); }
+  /// Allocation-free (at most kMaxEulerLagrangeJoints joints).
+  void Evaluate(const ConstVectorRef& x, VectorRef phi) const override;
+  /// One block, "euler_lagrange_nystrom", unit prior variances.
+  std::vector<FeatureBlock> blocks() const override;
+
+ private:
+  int n_;
+  int joint_;
+  EulerLagrangeGPHyperparameters hyper_;
+  EulerLagrangeKernel kernel_;
+  std::shared_ptr<const FeatureMap> effects_;
+  Matrix states_t_;   // 3N x p
+  Matrix effect_z_;   // p x D: phi_e(z)^T diag(lambda)
+  Matrix factor_;     // lower, (p N) x (p N)
+};
+
 }  // namespace structgp
 
 #endif  // STRUCTGP_MODEL_EULER_LAGRANGE_GP_H_
