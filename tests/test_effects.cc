@@ -201,7 +201,7 @@ TEST(BaseModelList, EveryBaseParsesByItsNameAndHasADescription) {
     EXPECT_EQ(std::find(seen.begin(), seen.end(), base), seen.end()) << ToString(base);
     seen.push_back(base);
   }
-  EXPECT_EQ(seen.size(), 6u);
+  EXPECT_EQ(seen.size(), 7u);
 }
 
 TEST(EffectDescribe, OnePhrasePerBuiltInEffect) {

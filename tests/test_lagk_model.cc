@@ -24,20 +24,24 @@
 namespace structgp {
 namespace {
 
-// A slow three-link log (30 via points in 20 s, 400 rows) with Coulomb friction on joint 2, and
-// a 2.5x faster test log.
+// A slow three-link log (30 via points in 20 s, 400 rows) with the hidden effect on joint 2,
+// and a 2.5x faster test log.
+sim::HiddenEffectScenario ThreeLinkScenario(sim::HiddenEffect effect) {
+  sim::HiddenEffectOptions o;
+  o.effect = effect;
+  o.joint = 2;
+  o.seed = 5;
+  o.train_duration = 20.0;
+  o.test_duration = 5.0;
+  o.dt = 0.05;
+  o.num_vias = 30;
+  return sim::MakeHiddenEffectScenario(sim::ThreeLinkArm(), o);
+}
+
+// With Coulomb friction on joint 2.
 const sim::HiddenEffectScenario& Scenario() {
-  static const sim::HiddenEffectScenario scenario = [] {
-    sim::HiddenEffectOptions o;
-    o.effect = sim::HiddenEffect::kCoulomb;
-    o.joint = 2;
-    o.seed = 5;
-    o.train_duration = 20.0;
-    o.test_duration = 5.0;
-    o.dt = 0.05;
-    o.num_vias = 30;
-    return sim::MakeHiddenEffectScenario(sim::ThreeLinkArm(), o);
-  }();
+  static const sim::HiddenEffectScenario scenario =
+      ThreeLinkScenario(sim::HiddenEffect::kCoulomb);
   return scenario;
 }
 
@@ -181,14 +185,7 @@ TEST(LagkModel, DiagnosisNamesTheHiddenFrictionAndNothingElse) {
   after.model.PredictRows(t.X, &ma);
   EXPECT_LT(Rms(ma.col(1) - t.Y.col(1)), 0.8 * Rms(mb.col(1) - t.Y.col(1)));
 
-  sim::HiddenEffectOptions o;
-  o.effect = sim::HiddenEffect::kNone;
-  o.seed = 5;
-  o.train_duration = 20.0;
-  o.test_duration = 5.0;
-  o.dt = 0.05;
-  o.num_vias = 30;
-  const sim::HiddenEffectScenario clean = sim::MakeHiddenEffectScenario(sim::ThreeLinkArm(), o);
+  const sim::HiddenEffectScenario clean = ThreeLinkScenario(sim::HiddenEffect::kNone);
   const FittedModel plain =
       FitModel(ParseModelSpec("lagk"), clean.train.X, clean.train.Y, Vector(), options);
   ASSERT_TRUE(plain.summary.IsUsable()) << plain.summary.message;
