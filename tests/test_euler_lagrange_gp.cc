@@ -143,7 +143,9 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
         ASSERT_EQ(gp->PredictOne(x, mean, var, w), Status::kOk);
         allocations = counter.count();
       }
-      if (testing::CountsEveryAllocation()) EXPECT_EQ(allocations, 0u);
+      if (testing::CountsEveryAllocation()) {
+        EXPECT_EQ(allocations, 0u);
+      }
       EXPECT_LT((mean - mb.row(s).transpose()).cwiseAbs().maxCoeff(),
                 1e-10 * (1.0 + mb.cwiseAbs().maxCoeff()));
       EXPECT_LT((var - vb.row(s).transpose()).cwiseAbs().maxCoeff(),

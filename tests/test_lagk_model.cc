@@ -165,7 +165,9 @@ TEST(LagkModel, TakesEffectsOfTheStateThroughFitAndModelFile) {
 TEST(LagkModel, DiagnosisNamesTheHiddenFrictionAndNothingElse) {
   const sim::Dataset& d = Scenario().train;
   const sim::Dataset& t = Scenario().test;
-  const FitOptions options = QuickOptions();
+  // One sigma: four fits and two diagnoses stay quick (also under the sanitizers).
+  FitOptions options = QuickOptions();
+  options.euler_lagrange.sigmas = {10.0};
   const FittedModel before = FitModel(ParseModelSpec("lagk"), d.X, d.Y, Vector(), options);
   ASSERT_TRUE(before.summary.IsUsable()) << before.summary.message;
   const Diagnosis dx = Diagnose(before.model, d.X, d.Y, d.t);
@@ -215,7 +217,9 @@ TEST(LagkModel, OneStatePredictionAllocatesNothingAndMatchesTheRows) {
       ASSERT_EQ(model.PredictWithVariance(x, mean, lv, nv, w), Status::kOk);
       allocations = counter.count();
     }
-    if (testing::CountsEveryAllocation()) EXPECT_EQ(allocations, 0u);
+    if (testing::CountsEveryAllocation()) {
+      EXPECT_EQ(allocations, 0u);
+    }
     EXPECT_LT((mean - rows_mean.row(s).transpose()).cwiseAbs().maxCoeff(), 1e-12);
     EXPECT_LT((lv.cwiseSqrt() - rows_std.row(s).transpose()).cwiseAbs().maxCoeff(), 1e-12);
     EXPECT_LT((nv - lv - noise.cwiseAbs2()).cwiseAbs().maxCoeff(), 1e-12);
