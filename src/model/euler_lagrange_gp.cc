@@ -144,6 +144,15 @@ double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F,
   return value;
 }
 
+// The effects' map (null: none) fits the hyper-parameters' effect prior variances and the 3N
+// states.
+void CheckEffects(const EulerLagrangeGPHyperparameters& h, const FeatureMap* effects) {
+  Require((effects != nullptr) == h.effects() &&
+              (effects == nullptr || (effects->dim() == h.effect_prior_variance.size() &&
+                                      effects->input_dim() == 3 * h.num_joints())),
+          "the effects' map and prior variances do not fit each other or the 3N states");
+}
+
 void CheckData(const ConstMatrixRef& X, const ConstMatrixRef& Y, int n) {
   Require(Y.cols() == n, "expected " + std::to_string(n) + " torque columns, got " +
                              std::to_string(Y.cols()));
@@ -194,10 +203,7 @@ EulerLagrangeGP::EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters,
     : hyper_((hyperparameters.Validate(), std::move(hyperparameters))),
       kernel_(hyper_.num_joints(), hyper_.sigma),
       effects_(std::move(effects)) {
-  Require((effects_ != nullptr) == hyper_.effects() &&
-              (effects_ == nullptr || (effects_->dim() == hyper_.effect_prior_variance.size() &&
-                                       effects_->input_dim() == 3 * hyper_.num_joints())),
-          "the effects' map and prior variances do not fit each other or the 3N states");
+  CheckEffects(hyper_, effects_.get());
 }
 
 EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base,
@@ -205,10 +211,7 @@ EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameter
                                              std::vector<int> parts, const FeatureMap* effects)
     : n_(base.num_joints()), parts_(std::move(parts)) {
   base.Validate();
-  Require((effects != nullptr) == base.effects() &&
-              (effects == nullptr || (effects->dim() == base.effect_prior_variance.size() &&
-                                      effects->input_dim() == 3 * n_)),
-          "the effects' map and prior variances do not fit each other or the 3N states");
+  CheckEffects(base, effects);
   CheckData(X, Y, n_);
   std::vector<bool> searched(static_cast<size_t>(2 * n_), false);
   for (int p : parts_) {
