@@ -7,7 +7,13 @@
 //  - BM_Predict: PredictWithVariance alone (one pass, one right-hand side);
 //  - BM_StreamFactor: a plain sum over m (m + 1) / 2 doubles, the same bytes as one pass over
 //    the factor: the memory-bandwidth floor of the steps above on this machine;
-//  - BM_Fit: batch fit from scratch.
+//  - BM_Fit: batch fit from scratch;
+//  - BM_LogEvidenceGradient: the log evidence with its gradient (type-II maximum likelihood's
+//    evaluation: C^{-1} from the factor, O(m^3));
+//  - BM_InverseFromFactor / BM_InverseBySolve: C^{-1} from its Cholesky factor by the two
+//    triangular recursions of internal/cholesky.h against solving C X = I with the factor
+//    (what both evidence gradients did before), at the sizes the evidences see (m = 2400:
+//    400 rows of a six-joint Euler-Lagrange GP).
 //
 //   build/bench/bench_kernel_gp --benchmark_repetitions=10 --benchmark_report_aggregates_only=true
 //
@@ -24,6 +30,7 @@
 #include <benchmark/benchmark.h>
 
 #include "alloc_counter.h"
+#include "structgp/internal/cholesky.h"
 #include "structgp/kernel/rbf_kernel.h"
 #include "structgp/model/kernel_gp.h"
 
@@ -175,11 +182,57 @@ void BM_Fit(benchmark::State& state) {
   }
 }
 
+void BM_LogEvidenceGradient(benchmark::State& state) {
+  const int m = static_cast<int>(state.range(0));
+  const Data data = MakeData(m, kSeed);
+  KernelGP model(MakeKernel(), kNoiseVariance, kOutputs);
+  if (model.Fit(data.X, data.Y) != Status::kOk) {
+    state.SkipWithError("fit failed");
+    return;
+  }
+  Vector d_kernel, d_scale;
+  double d_noise = 0.0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(model.LogMarginalLikelihood(&d_kernel, &d_noise, &d_scale));
+  }
+}
+
+// A random symmetric positive definite C (condition ~1e3) and its factor.
+Matrix RandomFactor(int m) {
+  std::mt19937_64 rng(kSeed);
+  std::normal_distribution<double> normal;
+  const Matrix A = Matrix::NullaryExpr(m, m, [&]() { return normal(rng); });
+  Matrix C = A * A.transpose() / m;
+  C.diagonal().array() += 1e-3;
+  structgp::internal::Cholesky chol;
+  chol.Factorize(C);
+  return chol.ReleaseFactor();
+}
+
+void BM_InverseFromFactor(benchmark::State& state) {
+  const Matrix L = RandomFactor(static_cast<int>(state.range(0)));
+  for (auto _ : state) benchmark::DoNotOptimize(structgp::internal::InverseFromFactor(L).data());
+}
+
+void BM_InverseBySolve(benchmark::State& state) {
+  const Matrix L = RandomFactor(static_cast<int>(state.range(0)));
+  const Eigen::Index m = L.rows();
+  for (auto _ : state) {
+    Matrix X = Matrix::Identity(m, m);
+    L.triangularView<Eigen::Lower>().solveInPlace(X);
+    L.transpose().triangularView<Eigen::Upper>().solveInPlace(X);
+    benchmark::DoNotOptimize(X.data());
+  }
+}
+
 BENCHMARK(BM_AddAndPredict)->Arg(1000)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AddThenPredict)->Arg(1000)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Predict)->Arg(1000)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_StreamFactor)->Arg(1000)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Fit)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LogEvidenceGradient)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_InverseFromFactor)->Arg(1000)->Arg(2400)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_InverseBySolve)->Arg(1000)->Arg(2400)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -259,6 +259,40 @@ TEST(Cholesky, MeanDiagonalFloorIsAlwaysAddedAsAMultipleOfTheIdentity) {
   EXPECT_EQ(climbed.jitter, Rung(2));
 }
 
+// The inverse from the factor against the factor's solve of A X = I (an independent route:
+// two triangular solves), at sizes on both sides of the recursions' block (96) and odd splits;
+// A^{-1} A = I to rounding of the condition number; exactly symmetric.
+TEST(Cholesky, InverseFromFactorEqualsSolvingForTheIdentity) {
+  std::mt19937_64 rng = SeededRng(41);
+  std::uniform_real_distribution<double> log_eigenvalue(-4.0, 2.0);
+  for (int n : {1, 2, 7, 95, 96, 97, 193, 250, 517}) {
+    const Vector eigenvalues =
+        Vector::NullaryExpr(n, [&]() { return std::pow(10.0, log_eigenvalue(rng)); });
+    const Matrix A = 3.7e2 * WithSpectrum(eigenvalues, &rng);
+    Cholesky chol;
+    ASSERT_EQ(chol.Factorize(A, {JitterLadder::kNone}).status, Status::kOk) << "n = " << n;
+    const Matrix reference = chol.solve(Matrix::Identity(n, n));
+    const Matrix inverse = internal::InverseFromFactor(chol.factor());
+    ASSERT_EQ(inverse.rows(), n);
+    ASSERT_EQ(inverse.cols(), n);
+    EXPECT_EQ((inverse - inverse.transpose()).cwiseAbs().maxCoeff(), 0.0) << "n = " << n;
+    // cond(A) <= 1e6: both routes agree to ~cond * n * eps of the inverse's size.
+    const double scale = reference.cwiseAbs().maxCoeff();
+    EXPECT_LE((inverse - reference).cwiseAbs().maxCoeff(), 1e6 * n * kEps * scale) << "n = " << n;
+    EXPECT_LE((inverse * A - Matrix::Identity(n, n)).cwiseAbs().maxCoeff(), 1e6 * n * kEps)
+        << "n = " << n;
+  }
+  // Only the lower triangle of the factor is read.
+  const Matrix A = WithSpectrum(Vector::LinSpaced(130, 1.0, 5.0), &rng);
+  Cholesky chol;
+  ASSERT_TRUE(chol.Factorize(A).status == Status::kOk);
+  Matrix L = chol.factor();
+  L.triangularView<Eigen::StrictlyUpper>().setConstant(std::nan(""));
+  EXPECT_TRUE(internal::InverseFromFactor(L).isApprox(chol.solve(Matrix::Identity(130, 130)),
+                                                      1e-12));
+  EXPECT_THROW(internal::InverseFromFactor(Matrix::Zero(3, 2)), std::invalid_argument);
+}
+
 TEST(Cholesky, BadArgumentsThrowNamingTheProblem) {
   Cholesky chol;
   try {

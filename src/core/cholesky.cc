@@ -36,7 +36,61 @@ bool Attempt(const ConstMatrixRef& A, JitterScale scale, double mean_diagonal, d
   return true;
 }
 
+// Below this size the recursions below stop and use Eigen's triangular kernels directly.
+constexpr Eigen::Index kInverseBlock = 96;
+
+// M (lower triangle, n x n) <- M^{-1}, lower-triangular. With M = [A 0; B D]:
+// M^{-1} = [A^{-1} 0; -D^{-1} B A^{-1}  D^{-1}].
+void InvertLowerInPlace(Eigen::Ref<Matrix> M) {
+  const Eigen::Index n = M.rows();
+  if (n <= kInverseBlock) {
+    Matrix I = Matrix::Identity(n, n);
+    M.triangularView<Eigen::Lower>().solveInPlace(I);
+    M.triangularView<Eigen::Lower>() = I;
+    return;
+  }
+  const Eigen::Index k = n / 2;
+  InvertLowerInPlace(M.topLeftCorner(k, k));
+  InvertLowerInPlace(M.bottomRightCorner(n - k, n - k));
+  auto B = M.bottomLeftCorner(n - k, k);
+  Matrix BA = B * M.topLeftCorner(k, k).triangularView<Eigen::Lower>();
+  B.noalias() = -(M.bottomRightCorner(n - k, n - k).triangularView<Eigen::Lower>() * BA);
+}
+
+// M (lower triangle holds a lower-triangular T) <- lower triangle of T^T T. With T = [A 0; B D]:
+// T^T T = [A^T A + B^T B, B^T D; D^T B, D^T D].
+void LowerTransposeTimesSelfInPlace(Eigen::Ref<Matrix> M) {
+  const Eigen::Index n = M.rows();
+  if (n <= kInverseBlock) {
+    const Matrix T = M.triangularView<Eigen::Lower>();
+    Matrix P = Matrix::Zero(n, n);
+    P.selfadjointView<Eigen::Lower>().rankUpdate(T.transpose());
+    M.triangularView<Eigen::Lower>() = P;
+    return;
+  }
+  const Eigen::Index k = n / 2;
+  auto B = M.bottomLeftCorner(n - k, k);
+  LowerTransposeTimesSelfInPlace(M.topLeftCorner(k, k));
+  M.topLeftCorner(k, k).selfadjointView<Eigen::Lower>().rankUpdate(B.transpose());
+  Matrix DB =
+      M.bottomRightCorner(n - k, n - k).triangularView<Eigen::Lower>().transpose() * B;
+  B = DB;
+  LowerTransposeTimesSelfInPlace(M.bottomRightCorner(n - k, n - k));
+}
+
 }  // namespace
+
+Matrix InverseFromFactor(const ConstMatrixRef& L) {
+  if (L.rows() != L.cols()) {
+    throw std::invalid_argument("InverseFromFactor: expected a square factor, got " +
+                                std::to_string(L.rows()) + " x " + std::to_string(L.cols()));
+  }
+  Matrix M = L.triangularView<Eigen::Lower>();
+  InvertLowerInPlace(M);
+  LowerTransposeTimesSelfInPlace(M);
+  M.triangularView<Eigen::StrictlyUpper>() = M.transpose();
+  return M;
+}
 
 double MeanDiagonal(const ConstMatrixRef& A) { return std::max(A.diagonal().mean(), DBL_MIN); }
 

@@ -7,6 +7,8 @@
 #include <string>
 #include <utility>
 
+#include "structgp/internal/cholesky.h"
+
 namespace structgp {
 namespace {
 
@@ -125,7 +127,7 @@ double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F,
   const double value = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
   if (!std::isfinite(value)) return -std::numeric_limits<double>::infinity();
   if (gradient != nullptr) {
-    const Matrix Ci = llt.solve(Matrix::Identity(C.rows(), C.rows()));
+    const Matrix Ci = internal::InverseFromFactor(llt.matrixLLT());
     // d log p / d log w = -1/2 w (tr(C^-1 A) - alpha^T A alpha).
     for (size_t k = 0; k < P; ++k) {
       const Matrix& A = parts[k];

@@ -400,10 +400,8 @@ double KernelGP::LogMarginalLikelihood(Vector* d_kernel_parameters, double* d_lo
     // where s_j^2 alpha_j = L^{-T} beta_j and C^{-1} = L^{-T} L^{-1}.
     Matrix L = Matrix::Zero(m, m);
     for (int i = 0; i < m; ++i) L.row(i).head(i + 1) = Eigen::Map<const Vector>(row(i), i + 1);
-    Matrix L_inverse = Matrix::Identity(m, m);
-    L.triangularView<Eigen::Lower>().solveInPlace(L_inverse);
-    Matrix W(m, m);
-    W.noalias() = -static_cast<double>(num_outputs_) * L_inverse.transpose() * L_inverse;
+    Matrix W = internal::InverseFromFactor(L);
+    W *= -static_cast<double>(num_outputs_);
     Matrix scaled_alpha = beta_.topRows(m);  // -> s_j^2 alpha_j = L^{-T} beta_j
     L.transpose().triangularView<Eigen::Upper>().solveInPlace(scaled_alpha);
     for (int j = 0; j < num_outputs_; ++j) {

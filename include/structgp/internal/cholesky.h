@@ -89,6 +89,14 @@ struct CholeskyResult {
 /// jitter of that scale is result.jitter * MeanDiagonal(A).
 double MeanDiagonal(const ConstMatrixRef& A);
 
+/// A^{-1} = L^{-T} L^{-1} from the lower Cholesky factor L of A (only L's lower triangle is
+/// read), as a full symmetric matrix: the matrix an evidence's gradient needs
+/// (tr(A^{-1} dA / d theta)). Two blocked recursions, each about n^3 / 3 flops: L^{-1} in
+/// place (the triangular inverse), then the lower triangle of L^{-T} L^{-1}; in all about a
+/// third of solving A X = I with the factor (2 n^3). Allocates the result and the recursions'
+/// temporaries; not for a real-time path. L must have a nonzero diagonal.
+Matrix InverseFromFactor(const ConstMatrixRef& L);
+
 /// L L^T = A + J for symmetric positive definite A (only its lower triangle is read).
 ///
 /// Invariant after an accepted Factorize: factor() is lower-triangular (strictly upper part
