@@ -7,6 +7,7 @@
 #include "structgp/model/euler_lagrange_gp.h"
 #include "structgp/hyper/euler_lagrange_fit.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -276,6 +277,16 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
   EXPECT_EQ(summary.rows, 200);
   EXPECT_EQ(summary.hyperparameter_rows, 120);
   EXPECT_EQ(summary.log_evidence_per_sigma.size(), 3u);
+  // The grid is searched in increasing order, each sigma after the first from the better of
+  // the cold start and the previous optimum; the best sigma's evidence is the summary's.
+  EXPECT_EQ(summary.sigmas, options.sigmas);
+  ASSERT_EQ(summary.iterations_per_sigma.size(), 3u);
+  ASSERT_EQ(summary.warm_start_per_sigma.size(), 3u);
+  EXPECT_FALSE(summary.warm_start_per_sigma[0]);
+  for (int k = 0; k < 3; ++k) EXPECT_GT(summary.iterations_per_sigma[k], 0) << "sigma " << k;
+  EXPECT_EQ(*std::max_element(summary.log_evidence_per_sigma.begin(),
+                              summary.log_evidence_per_sigma.end()),
+            summary.log_evidence);
   Matrix mean, var;
   ASSERT_EQ(gp->Predict(Xt, &mean, &var), Status::kOk);
   int inside = 0;
@@ -290,6 +301,15 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
     }
   }
   EXPECT_GT(inside, 0.8 * n * Xt.rows());
+
+  // The grid's order and repeats do not matter: the same search as the sorted grid.
+  EulerLagrangeGPOptions shuffled = options;
+  shuffled.sigmas = {10.0, 1.0, 3.0, 3.0};
+  const EulerLagrangeGPSummary same = FitEulerLagrangeGP(X, Y, shuffled, nullptr);
+  ASSERT_EQ(same.status, Status::kOk) << same.message;
+  EXPECT_EQ(same.sigmas, options.sigmas);
+  EXPECT_EQ(same.log_evidence, summary.log_evidence);
+  EXPECT_EQ(same.hyperparameters.part_weights, summary.hyperparameters.part_weights);
 
   // One weight pair for the whole chain: only link N's parts are fitted.
   options.per_link = false;

@@ -438,10 +438,12 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   for (size_t k = 0; k < s.sigmas.size(); ++k) {
     per_sigma += (per_sigma.empty() ? "" : ", ") + Number(s.sigmas[k]) + ": " +
                  (std::isfinite(s.log_evidence_per_sigma[k])
-                      ? Number(s.log_evidence_per_sigma[k])
-                      : std::string("failed"));
+                      ? Number(s.log_evidence_per_sigma[k]) + " nats"
+                      : std::string("failed")) +
+                 Format(" (%d iterations%s)", s.iterations_per_sigma[k],
+                        s.warm_start_per_sigma[k] ? ", from the previous sigma's optimum" : "");
   }
-  summary.notes.push_back("log evidence at each sigma: " + per_sigma + " nats");
+  summary.notes.push_back("log evidence at each sigma: " + per_sigma);
   if (used < X.rows()) {
     summary.notes.push_back(Format("hyper-parameters fitted on %d evenly spaced rows of %d", used,
                                    static_cast<int>(X.rows())));

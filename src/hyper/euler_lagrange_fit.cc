@@ -173,20 +173,44 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
 
   double best = -std::numeric_limits<double>::infinity();
   EulerLagrangeGPHyperparameters best_h;
-  for (double sigma : options.sigmas) {
+  std::vector<double> sigmas = options.sigmas;
+  std::sort(sigmas.begin(), sigmas.end());
+  sigmas.erase(std::unique(sigmas.begin(), sigmas.end()), sigmas.end());
+  // The previous sigma's optimum with each part's log weight plus the log of its mean prior
+  // variance (the scale that carries over between sigmas); empty before the first usable one.
+  std::vector<double> carried;
+  const size_t P = searched.size();
+  for (double sigma : sigmas) {
     summary.sigmas.push_back(sigma);
     summary.log_evidence_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
+    summary.iterations_per_sigma.push_back(0);
+    summary.warm_start_per_sigma.push_back(false);
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
+    if (!carried.empty()) {
+      std::vector<double> warm = carried;
+      for (size_t k = 0; k < P; ++k) {
+        warm[k] -= std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
+      }
+      if (evidence.Evaluate(warm.data(), nullptr) > evidence.Evaluate(p.data(), nullptr)) {
+        p = std::move(warm);
+        summary.warm_start_per_sigma.back() = true;
+      }
+    }
     ceres::GradientProblem problem(new NegativeLogEvidence(evidence));
     ceres::GradientProblemSolver::Options o;
     o.max_num_iterations = options.max_iterations;
     o.logging_type = ceres::SILENT;
     ceres::GradientProblemSolver::Summary s;
     ceres::Solve(o, problem, p.data(), &s);
+    summary.iterations_per_sigma.back() = static_cast<int>(s.iterations.size());
     if (!s.IsSolutionUsable() || !std::isfinite(s.final_cost)) continue;
     summary.log_evidence_per_sigma.back() = -s.final_cost;
+    carried = p;
+    for (size_t k = 0; k < P; ++k) {
+      carried[k] += std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
+    }
     if (-s.final_cost > best) {
       best = -s.final_cost;
       best_h = WithParameters(base, searched, p);
