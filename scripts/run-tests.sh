@@ -43,15 +43,23 @@ if [ -n "$module" ]; then
 fi
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
-  # ASan + UBSan: every test of the suite (benchmark programs are not tests, and the experiments'
-  # quick checks are too slow under ASan: both left out).
+  # ASan + UBSan at -O1 (half the compile time of -O3 per file): every test of the suite but
+  # the few long numerical cases below, which repeat at larger sizes code paths that smaller
+  # tests run under the sanitizers too (docs/reliability.md, section 5, names them and their
+  # stand-ins). Benchmark programs are not tests, and the experiments' quick checks are too slow
+  # under ASan: both left out.
   asan=${STRUCTGP_ASAN_BUILD_DIR:-build-asan}
   cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=address \
+        -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF
   cmake --build "$asan" -j "$jobs"
+  release_only='^test_decomposition\.Decomposition\.RandomThreeJoint'
+  release_only+='|^test_rbd_model\.RbdModelTest\.RbdPolLearnsWhatTheUrdfGetsWrong$'
+  release_only+='|^test_lagk_model\.LagkModel\.DiagnosisNamesTheHiddenFrictionAndNothingElse$'
+  release_only+='|^test_diagnosis\.FunctionSpacePol\.DiagnosisNamesCoulombOnFourJoints$'
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
-    ctest --test-dir "$asan" --output-on-failure -j "$jobs"
+    ctest --test-dir "$asan" --output-on-failure -j "$jobs" -E "$release_only"
 
   # TSan: the tests that run threads (online learner next to a control loop, multi-threaded
   # batch statistics, Nystrom features built on several threads); only their targets are built.

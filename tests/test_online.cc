@@ -362,7 +362,9 @@ TEST_P(OnlineLearnerBatched, MatchesSingleCallsToRounding) {
   EXPECT_EQ(s.status_failures(), 0);
   EXPECT_EQ(s.samples_in_model, c.window > 0 ? c.window : 600);
   EXPECT_EQ(s.downdates, c.window > 0 ? 600 - c.window : 0);
-  if (!c.thread) EXPECT_LT(s.batches, s.processed) << "bursts should share passes";
+  if (!c.thread) {
+    EXPECT_LT(s.batches, s.processed) << "bursts should share passes";
+  }
   EXPECT_FALSE(s.learner_failed);
 }
 
