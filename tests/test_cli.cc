@@ -868,6 +868,20 @@ TEST(CliUrdf, DemoOnAUrdfRobotFindsTheHiddenFrictionWithRbd) {
   ASSERT_EQ(diag.code, 0) << diag.err;
 }
 
+// With --urdf and a kinematics-free model the demo says the model knows nothing of the robot.
+TEST(CliUrdf, DemoSaysWhatTheStartingModelKnows) {
+  TempDir dir;
+  const Result pol = RunCli(dir, {"demo", "--urdf", Urdf("two_link_arm.urdf"), "--model", "pol",
+                                  "--out", dir.File("pol"), "--quiet"});
+  ASSERT_EQ(pol.code, 0) << pol.err;
+  EXPECT_TRUE(Contains(pol.out, "the model is told nothing about the robot")) << pol.out;
+  EXPECT_FALSE(Contains(pol.out, "knows the URDF")) << pol.out;
+  const Result rbd = RunCli(dir, {"demo", "--urdf", Urdf("two_link_arm.urdf"), "--out",
+                                  dir.File("rbd"), "--quiet"});
+  ASSERT_EQ(rbd.code, 0) << rbd.err;
+  EXPECT_TRUE(Contains(rbd.out, "the model knows the URDF's kinematics and inertias")) << rbd.out;
+}
+
 TEST(CliUrdf, BadRobotInputGivesExitCode2AndAClearMessage) {
   TempDir dir;
   const std::string demo = dir.File("demo");

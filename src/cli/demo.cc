@@ -105,13 +105,16 @@ class DemoCommand : public Command {
           "%.3g N m)\n",
           joint_, magnitude_ * scale, scale);
     }
-    std::printf(chain ? "the model knows the URDF's kinematics and inertias, nothing about "
-                        "friction or other effects\n\n"
-                      : "the model is told nothing about the robot: no masses, lengths or "
-                        "friction\n\n");
+    // What the starting model knows: the URDF only when it uses the chain (rbd, rbd+...).
+    const ModelSpec before_spec = ParseSpecFlags(start, "");
+    const bool knows_chain =
+        chain && (before_spec.base == BaseModel::kRbd || before_spec.rigid_body_features);
+    std::printf(knows_chain ? "the model knows the URDF's kinematics and inertias, nothing about "
+                              "friction or other effects\n\n"
+                            : "the model is told nothing about the robot: no masses, lengths or "
+                              "friction\n\n");
 
     // 1. The rigid-body model alone.
-    const ModelSpec before_spec = ParseSpecFlags(start, "");
     RobotModel before = MakeModel(before_spec, N, model_options);
     progress.Line("fitting " + start + " on the slow log");
     const FitSummary before_info = FitModel(train, settings, progress, &before);
