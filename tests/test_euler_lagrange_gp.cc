@@ -18,6 +18,7 @@
 
 #include "alloc_counter.h"
 
+#include "structgp/core/row_subset.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"
 #include "structgp/feature/lagrangian_regressor_map.h"
@@ -163,6 +164,41 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
 
 // With every part weight zero and no friction, only the effects remain: the posterior is the
 // weight-space GP on the effects' features with joint i's prior and noise scaled by s_i^2.
+// The one rule for inducing states: InducingRows is FarthestStateRows or EvenlySpacedRows (none
+// at count 0 or when the rows are no more than count), and Condition through a count is
+// Condition through those states, bit for bit.
+TEST(EulerLagrangeGP, InducingStatesByCountAreTheRulesRows) {
+  using Rule = EulerLagrangeGP::InducingRule;
+  std::mt19937 rng(6);
+  const int n = 2, m = 30, p = 7;
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, true, &rng);
+  const Matrix X = RandomStates(m, n, &rng);
+  std::normal_distribution<double> normal;
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return normal(rng); });
+  EXPECT_EQ(EulerLagrangeGP::InducingRows(X, p, Rule::kCoverStates), FarthestStateRows(X, p));
+  EXPECT_EQ(EulerLagrangeGP::InducingRows(X, p, Rule::kEvenlySpaced), EvenlySpacedRows(m, p));
+  EXPECT_NE(FarthestStateRows(X, p), EvenlySpacedRows(m, p));
+  EXPECT_TRUE(EulerLagrangeGP::InducingRows(X, 0, Rule::kCoverStates).empty());
+  EXPECT_TRUE(EulerLagrangeGP::InducingRows(X, m, Rule::kCoverStates).empty());
+  EXPECT_THROW(EulerLagrangeGP::InducingRows(X, -1, Rule::kCoverStates), std::invalid_argument);
+  const Matrix Xt = RandomStates(5, n, &rng);
+  for (Rule rule : {Rule::kCoverStates, Rule::kEvenlySpaced}) {
+    EulerLagrangeGP by_count(h), by_states(h);
+    ASSERT_EQ(by_count.Condition(X, Y, p, rule), Status::kOk);
+    ASSERT_EQ(by_states.Condition(X, Y, SelectRows(X, EulerLagrangeGP::InducingRows(X, p, rule))),
+              Status::kOk);
+    EXPECT_TRUE(by_count.dtc());
+    Matrix mc, vc, ms, vs;
+    ASSERT_EQ(by_count.Predict(Xt, &mc, &vc), Status::kOk);
+    ASSERT_EQ(by_states.Predict(Xt, &ms, &vs), Status::kOk);
+    EXPECT_EQ(mc, ms);
+    EXPECT_EQ(vc, vs);
+  }
+  EulerLagrangeGP all(h);
+  ASSERT_EQ(all.Condition(X, Y, m), Status::kOk);
+  EXPECT_FALSE(all.dtc());
+}
+
 TEST(EulerLagrangeGP, EffectsAloneEqualTheWeightSpaceGPOnTheirFeatures) {
   std::mt19937 rng(21);
   const int n = 3, m = 40;

@@ -231,14 +231,8 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
   summary.log_evidence = best;
   if (gp == nullptr) return finish(Status::kOk, "");
   EulerLagrangeGP model(best_h, options.effects);
-  Matrix Z;
-  if (options.inducing_states > 0 && options.inducing_states < X.rows()) {
-    Z = SelectRows(X, options.inducing_rule == EulerLagrangeGPOptions::InducingRule::kCoverStates
-                         ? FarthestStateRows(X, options.inducing_states)
-                         : EvenlySpacedRows(X.rows(), options.inducing_states));
-    summary.inducing_states = static_cast<int>(Z.rows());
-  }
-  const Status status = model.Condition(X, Y, Z);
+  const Status status = model.Condition(X, Y, options.inducing_states, options.inducing_rule);
+  if (model.dtc()) summary.inducing_states = static_cast<int>(model.states().rows());
   if (!IsOk(status)) {
     return finish(status, "the posterior's factorisation failed at the fitted hyper-parameters");
   }

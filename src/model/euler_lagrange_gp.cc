@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "structgp/core/row_subset.h"
 #include "structgp/internal/cholesky.h"
 
 namespace structgp {
@@ -258,6 +259,21 @@ double EulerLagrangeGP::LogEvidence(const EulerLagrangeGPHyperparameters& h,
   log_parameters << h.part_weights.array().log(), h.noise_std.array().log();
   if (gradient != nullptr) gradient->resize(3 * n);
   return evidence.Evaluate(log_parameters.data(), gradient != nullptr ? gradient->data() : nullptr);
+}
+
+std::vector<int> EulerLagrangeGP::InducingRows(const ConstMatrixRef& X, int count,
+                                               InducingRule rule) {
+  Require(count >= 0, "inducing states: expected a count >= 0 (0: exact), got " +
+                          std::to_string(count));
+  if (count == 0 || X.rows() <= count) return {};
+  return rule == InducingRule::kCoverStates ? FarthestStateRows(X, count)
+                                            : EvenlySpacedRows(X.rows(), count);
+}
+
+Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                  int inducing_count, InducingRule rule) {
+  const std::vector<int> rows = InducingRows(X, inducing_count, rule);
+  return rows.empty() ? Condition(X, Y) : Condition(X, Y, SelectRows(X, rows));
 }
 
 Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,

@@ -224,10 +224,7 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   }
   if (euler_hyper_) {
     auto model = std::make_unique<EulerLagrangeGP>(*euler_hyper_, euler_effects_);
-    const int p = batch_.inducing_states;
-    const Status status =
-        p > 0 && X.rows() > p ? model->Condition(X, Y, SelectRows(X, FarthestStateRows(X, p)))
-                              : model->Condition(X, Y);
+    const Status status = model->Condition(X, Y, batch_.inducing_states);
     if (status != Status::kOk) return status;
     euler_lagrange_ = std::move(model);
     data_rows_ = X.rows();

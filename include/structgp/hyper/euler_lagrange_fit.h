@@ -35,10 +35,9 @@ struct EulerLagrangeGPOptions {
   int hyperparameter_rows = 800;
   /// Condition on every row through this many inducing states (DTC); 0: exactly.
   int inducing_states = 0;
-  /// How they are chosen: kCoverStates (FarthestStateRows, core/row_subset.h: spread over the
-  /// states) or kEvenlySpaced (EvenlySpacedRows: spread over time, which can alias with a
-  /// periodic trajectory).
-  enum class InducingRule { kCoverStates, kEvenlySpaced };
+  /// How they are chosen (EulerLagrangeGP::InducingRows): kCoverStates (spread over the
+  /// states) or kEvenlySpaced (spread over time, which can alias with a periodic trajectory).
+  using InducingRule = EulerLagrangeGP::InducingRule;
   InducingRule inducing_rule = InducingRule::kCoverStates;
   int max_iterations = 80;
   /// Throws std::invalid_argument naming the first bad field.

@@ -122,6 +122,19 @@ class EulerLagrangeGP {
   /// unchanged). Throws std::invalid_argument on bad sizes or non-finite data.
   Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const ConstMatrixRef& inducing = Matrix());
+
+  /// How the inducing states are chosen among the training states.
+  enum class InducingRule {
+    kCoverStates,   ///< FarthestStateRows (core/row_subset.h): spread over the states
+    kEvenlySpaced,  ///< EvenlySpacedRows: spread over time (can alias with a periodic path)
+  };
+  /// The rows of X to induce: none (exact) when count is 0 or X has at most count rows, else
+  /// count rows by the rule. Throws std::invalid_argument when count < 0.
+  static std::vector<int> InducingRows(const ConstMatrixRef& X, int count, InducingRule rule);
+  /// The posterior on (X, Y) through the states of InducingRows(X, count, rule): the one place
+  /// the library chooses them (GaussianProcess::Fit, FitEulerLagrangeGP).
+  Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y, int inducing_count,
+                   InducingRule rule = InducingRule::kCoverStates);
   bool conditioned() const { return alpha_.size() > 0; }
 
   /// The states the posterior is held at: the training states (exact) or the inducing states
