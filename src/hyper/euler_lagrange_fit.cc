@@ -79,6 +79,12 @@ std::vector<int> SearchedParts(int n, bool per_link) {
   return searched;
 }
 
+// The log of part k's mean prior variance on the evidence's rows (the scale a part's weight is
+// measured against when it is carried to the next sigma).
+double LogMeanPartVariance(const EulerLagrangeEvidence& evidence, size_t k) {
+  return std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
+}
+
 // The start of the search (log part weights of the searched parts, log noise per joint): the
 // torques' mean square shared by the parts, each at its own mean prior variance, and the noise
 // at 10% of each joint's RMS torque.
@@ -190,9 +196,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     std::vector<double> p = Start(evidence, Yh);
     if (!carried.empty()) {
       std::vector<double> warm = carried;
-      for (size_t k = 0; k < P; ++k) {
-        warm[k] -= std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
-      }
+      for (size_t k = 0; k < P; ++k) warm[k] -= LogMeanPartVariance(evidence, k);
       if (evidence.Evaluate(warm.data(), nullptr) > evidence.Evaluate(p.data(), nullptr)) {
         p = std::move(warm);
         summary.warm_start_per_sigma.back() = true;
@@ -208,9 +212,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     if (!s.IsSolutionUsable() || !std::isfinite(s.final_cost)) continue;
     summary.log_evidence_per_sigma.back() = -s.final_cost;
     carried = p;
-    for (size_t k = 0; k < P; ++k) {
-      carried[k] += std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
-    }
+    for (size_t k = 0; k < P; ++k) carried[k] += LogMeanPartVariance(evidence, k);
     if (-s.final_cost > best) {
       best = -s.final_cost;
       best_h = WithParameters(base, searched, p);
