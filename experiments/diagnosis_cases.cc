@@ -473,12 +473,15 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   const auto start = std::chrono::steady_clock::now();
   const ModelSpec spec = ParseModelSpec(model_name);
   const bool rigid_body = spec.base == BaseModel::kRbd || spec.rigid_body_features;
-  // Models with rigid-body parameters share them across joints, so torques scaled per joint
-  // are not in their class: they get the torques in N m (noise and hidden effects scale along).
+  // Models with rigid-body parameters share them across joints, and the Lagrangian models
+  // explain every joint by one M(q) and V(q): torques scaled per joint are not in their class,
+  // so they get the torques in N m (noise and hidden effects scale along).
+  const bool one_lagrangian =
+      rigid_body || spec.base == BaseModel::kLag || spec.base == BaseModel::kLagk;
   SimLogs logs = scaled;
   const int N = static_cast<int>(scaled.train.Y.cols());
   Vector noise = Vector::Constant(N, f.noise);
-  if (rigid_body) {
+  if (one_lagrangian) {
     const Vector& scale = scaled.train.torque_scale;
     for (sim::Dataset* d : {&logs.train, &logs.diag, &logs.eval}) {
       d->Y = d->Y * scale.asDiagonal();
