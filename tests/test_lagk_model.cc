@@ -78,6 +78,21 @@ TEST(LagkModel, FitModelEqualsTheStepsByHand) {
   ASSERT_EQ(s.status, Status::kOk) << s.message;
   EXPECT_NEAR(fit.summary.final_negative_log_evidence, -s.log_evidence,
               1e-9 * std::abs(s.log_evidence));
+  // The summary counts the search of every sigma and starts from the first one's start.
+  int iterations = 0, evaluations = 0;
+  for (size_t k = 0; k < s.sigmas.size(); ++k) {
+    iterations += s.iterations_per_sigma[k];
+    evaluations += s.evaluations_per_sigma[k];
+  }
+  EXPECT_GT(iterations, 0);
+  EXPECT_GE(evaluations, iterations);
+  EXPECT_EQ(fit.summary.iterations, iterations);
+  EXPECT_EQ(fit.summary.num_evaluations, evaluations);
+  ASSERT_TRUE(std::isfinite(s.initial_log_evidence));
+  EXPECT_NEAR(fit.summary.initial_negative_log_evidence, -s.initial_log_evidence,
+              1e-9 * std::abs(s.initial_log_evidence));
+  EXPECT_GT(fit.summary.initial_negative_log_evidence, fit.summary.final_negative_log_evidence);
+  EXPECT_EQ(fit.summary.BriefReport().find("nan"), std::string::npos) << fit.summary.BriefReport();
 
   const sim::Dataset& t = Scenario().test;
   Matrix mean, latent_std, twin_mean, twin_var;

@@ -430,6 +430,13 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   }
   *h = ToHyperparameters(s.hyperparameters);
   summary.final_negative_log_evidence = -s.log_evidence;
+  summary.initial_negative_log_evidence = -s.initial_log_evidence;
+  summary.iterations = 0;
+  summary.num_evaluations = 0;
+  for (size_t k = 0; k < s.sigmas.size(); ++k) {
+    summary.iterations += s.iterations_per_sigma[k];
+    summary.num_evaluations += s.evaluations_per_sigma[k];
+  }
   summary.method_description =
       Format("type-II maximum likelihood over the part weights and each joint's noise, best of "
              "%d sigmas (sigma = %s)",

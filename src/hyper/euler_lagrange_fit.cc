@@ -191,6 +191,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.log_evidence_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
     summary.iterations_per_sigma.push_back(0);
     summary.warm_start_per_sigma.push_back(false);
+    summary.evaluations_per_sigma.push_back(0);
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
@@ -209,6 +210,10 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     ceres::GradientProblemSolver::Summary s;
     ceres::Solve(o, problem, p.data(), &s);
     summary.iterations_per_sigma.back() = static_cast<int>(s.iterations.size());
+    summary.evaluations_per_sigma.back() = s.num_cost_evaluations + s.num_gradient_evaluations;
+    if (summary.sigmas.size() == 1 && std::isfinite(s.initial_cost)) {
+      summary.initial_log_evidence = -s.initial_cost;
+    }
     if (!s.IsSolutionUsable() || !std::isfinite(s.final_cost)) continue;
     summary.log_evidence_per_sigma.back() = -s.final_cost;
     carried = p;

@@ -7,6 +7,7 @@
 /// grid on evenly spaced rows, the best evidence winning; then the posterior on every row,
 /// exactly or through inducing states that cover the training states (DTC). Options -> Summary.
 
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -54,6 +55,10 @@ struct EulerLagrangeGPSummary {
   /// optimum (the start with the larger evidence of the two: see FitEulerLagrangeGP).
   std::vector<int> iterations_per_sigma;
   std::vector<bool> warm_start_per_sigma;
+  /// Evaluations of the evidence (with its gradient) at each sigma, and the evidence at the
+  /// first sigma's start (NaN when it was not finite).
+  std::vector<int> evaluations_per_sigma;
+  double initial_log_evidence = std::numeric_limits<double>::quiet_NaN();
   int hyperparameter_rows = 0;
   int rows = 0;
   int inducing_states = 0;  // 0: exact
