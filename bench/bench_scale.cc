@@ -10,6 +10,10 @@
 // bound_MiB is the design bound threads x (D^2 + chunk x D) doubles plus the D^2 factor
 // and the Cholesky work of WeightSpaceGP::Fit.
 //
+// BM_EulerLagrangeDtc: the lagk posterior (EulerLagrangeGP::Condition) of a 6-joint arm on m
+// states through p inducing states (DTC), 1 and 2 workers: time and peak memory, against the
+// (p N) x (m N) cross-covariance that the whole-matrix form held at once (whole_V_MiB).
+//
 //   build/bench/bench_scale --benchmark_counters_tabular=true
 
 #include <benchmark/benchmark.h>
@@ -26,6 +30,7 @@
 
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/random_feature_map.h"
+#include "structgp/model/euler_lagrange_gp.h"
 #include "structgp/model/gaussian_process.h"
 
 namespace structgp {
@@ -134,6 +139,41 @@ void BM_Statistics(benchmark::State& state) {
     }
   }
 }
+
+// Args: m, p, workers. Random states and torques of a 6-joint arm (only the cost matters).
+void BM_EulerLagrangeDtc(benchmark::State& state) {
+  constexpr int n = 6;
+  const Eigen::Index m = state.range(0), p = state.range(1);
+  const int workers = static_cast<int>(state.range(2));
+  std::mt19937_64 rng(12345);
+  std::uniform_real_distribution<double> uniform(-2.0, 2.0);
+  const Matrix X = Matrix::NullaryExpr(m, 3 * n, [&]() { return uniform(rng); });
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return uniform(rng); });
+  const Matrix Z = X.topRows(p);
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = 3.0;
+  h.part_weights = Vector::Ones(2 * n);
+  h.noise_std = Vector::Constant(n, 0.1);
+  double extra = 0.0;
+  for (auto _ : state) {
+    EulerLagrangeGP gp(h);
+    const bool reset = ResetPeak();
+    const double before = StatusMiB("VmRSS");
+    if (gp.Condition(X, Y, Z, workers) != Status::kOk) state.SkipWithError("condition failed");
+    extra = reset ? StatusMiB("VmHWM") - before : -1.0;
+    benchmark::DoNotOptimize(gp.LogMarginalLikelihood());
+  }
+  const double mib = 8.0 / (1024.0 * 1024.0);
+  state.counters["extra_MiB"] = extra;
+  state.counters["whole_V_MiB"] = static_cast<double>(p * n) * static_cast<double>(m * n) * mib;
+}
+
+BENCHMARK(BM_EulerLagrangeDtc)
+    ->ArgNames({"m", "p", "workers"})
+    ->ArgsProduct({{4000}, {400}, {1, 2}})
+    ->Iterations(1)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_Statistics)
     ->ArgNames({"m", "D", "new"})

@@ -294,7 +294,9 @@ TEST(Decomposition, ComponentRowsAndCoefficientsAgreeWithTheOneRowCalls) {
     const auto [value, std_c] = model.Coefficient(c.name, c.joint);
     EXPECT_EQ(c.value, value) << c.name;
     EXPECT_EQ(c.std, std_c) << c.name;
-    if (c.name != "offset") EXPECT_EQ(c.name.back() - '0', c.joint) << c.name;
+    if (c.name != "offset") {
+      EXPECT_EQ(c.name.back() - '0', c.joint) << c.name;
+    }
   }
   // Without components: a function-space model says so.
   RobotModel kernel(ParseModelSpec("rbf"), 2);

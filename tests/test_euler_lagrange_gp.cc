@@ -162,6 +162,79 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
   EXPECT_EQ(exact.PredictOne(Xt.row(0).transpose(), mean, var, small), Status::kInvalidInput);
 }
 
+// DTC over blocks of training states and several workers: against the dense formulas (mean
+// K_*Z (K_ZZ + K_ZX S^-1 K_XZ)^-1 K_ZX S^-1 y, evidence log N(y; 0, K_XZ K_ZZ^-1 K_ZX + S)),
+// with a last block shorter than the others, and the same for 1 to 7 workers.
+TEST(EulerLagrangeGP, DtcOverBlocksAndWorkersEqualsTheDenseFormulas) {
+  std::mt19937 rng(8);
+  const int n = 2;
+  const int m = 3 * static_cast<int>(EulerLagrangeGP::kDtcBlockStates) + 17, p = 30;
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, false, &rng);
+  const Matrix X = RandomStates(m, n, &rng);
+  const Matrix Z = X.topRows(p);
+  std::normal_distribution<double> normal;
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return normal(rng); });
+  const Matrix Xt = RandomStates(6, n, &rng);
+
+  // The dense reference, from the kernel's blocks (row index state * N + joint).
+  const EulerLagrangeKernel kernel(n, h.sigma);
+  auto gram = [&](const Matrix& A, const Matrix& B) {
+    Matrix K(A.rows() * n, B.rows() * n), block(n, n);
+    for (Eigen::Index s = 0; s < A.rows(); ++s) {
+      for (Eigen::Index t = 0; t < B.rows(); ++t) {
+        kernel.Evaluate(A.row(s).transpose(), B.row(t).transpose(), h.part_weights, block);
+        K.block(s * n, t * n, n, n) = block;
+      }
+    }
+    return K;
+  };
+  Matrix Kzz = gram(Z, Z);
+  Kzz.diagonal().array() += 1e-8 * Kzz.diagonal().mean();  // the model's jitter
+  const Matrix Kzx = gram(Z, X), Ksz = gram(Xt, Z);
+  Vector s_inv(m * n), y(m * n);
+  for (int r = 0; r < m * n; ++r) {
+    s_inv[r] = 1.0 / (h.noise_std[r % n] * h.noise_std[r % n]);
+    y[r] = Y(r / n, r % n);
+  }
+  const Matrix A = Kzz + Kzx * s_inv.asDiagonal() * Kzx.transpose();
+  const Vector mean_ref = Ksz * A.ldlt().solve(Kzx * s_inv.asDiagonal() * y);
+  Matrix Q = Kzx.transpose() * Kzz.ldlt().solve(Kzx);
+  Q.diagonal() += s_inv.cwiseInverse();
+  const Eigen::LLT<Matrix> q(Q);
+  ASSERT_EQ(q.info(), Eigen::Success);
+  double half_logdet = 0.0;
+  for (Eigen::Index r = 0; r < Q.rows(); ++r) half_logdet += std::log(q.matrixL()(r, r));
+  const double evidence_ref = -0.5 * y.dot(q.solve(y)) - half_logdet -
+                              0.5 * std::log(2.0 * M_PI) * static_cast<double>(y.size());
+
+  Matrix mean_one;
+  double evidence_one = 0.0;
+  for (int workers : {1, 2, 3, 7}) {
+    EulerLagrangeGP gp(h);
+    ASSERT_EQ(gp.Condition(X, Y, Z, workers), Status::kOk) << workers << " workers";
+    Matrix mean, var;
+    ASSERT_EQ(gp.Predict(Xt, &mean, &var), Status::kOk);
+    for (Eigen::Index s = 0; s < Xt.rows(); ++s) {
+      for (int i = 0; i < n; ++i) {
+        EXPECT_NEAR(mean(s, i), mean_ref[s * n + i], 1e-6 * (1.0 + mean_ref.cwiseAbs().maxCoeff()))
+            << workers << " workers, state " << s << ", joint " << i + 1;
+      }
+    }
+    EXPECT_NEAR(gp.LogMarginalLikelihood(), evidence_ref, 1e-7 * std::abs(evidence_ref))
+        << workers << " workers";
+    if (workers == 1) {
+      mean_one = mean;
+      evidence_one = gp.LogMarginalLikelihood();
+    } else {
+      // Several workers: the same posterior to the order of additions.
+      EXPECT_LT((mean - mean_one).cwiseAbs().maxCoeff(), 1e-11 * (1.0 + mean_one.cwiseAbs().maxCoeff()));
+      EXPECT_NEAR(gp.LogMarginalLikelihood(), evidence_one, 1e-11 * std::abs(evidence_one));
+    }
+  }
+  EulerLagrangeGP gp(h);
+  EXPECT_THROW(gp.Condition(X, Y, Z, 0), std::invalid_argument);
+}
+
 // With every part weight zero and no friction, only the effects remain: the posterior is the
 // weight-space GP on the effects' features with joint i's prior and noise scaled by s_i^2.
 // The one rule for inducing states: InducingRows is FarthestStateRows or EvenlySpacedRows (none

@@ -157,6 +157,7 @@ void EulerLagrangeGPOptions::Validate() const {
   Require(hyperparameter_rows >= 0, "options: hyperparameter_rows must be >= 0");
   Require(inducing_states >= 0, "options: inducing_states must be >= 0");
   Require(max_iterations >= 1, "options: max_iterations must be >= 1");
+  Require(num_threads >= 1, "options: num_threads must be >= 1");
   Require((effects != nullptr) == (effect_prior_variance.size() > 0) &&
               (effects == nullptr || effects->dim() == effect_prior_variance.size()),
           "options: effects need a map and one prior variance per feature");
@@ -238,7 +239,8 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
   summary.log_evidence = best;
   if (gp == nullptr) return finish(Status::kOk, "");
   EulerLagrangeGP model(best_h, options.effects);
-  const Status status = model.Condition(X, Y, options.inducing_states, options.inducing_rule);
+  const Status status =
+      model.Condition(X, Y, options.inducing_states, options.inducing_rule, options.num_threads);
   if (model.dtc()) summary.inducing_states = static_cast<int>(model.states().rows());
   if (!IsOk(status)) {
     return finish(status, "the posterior's factorisation failed at the fitted hyper-parameters");

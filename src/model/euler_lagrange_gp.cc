@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
+#include <vector>
 
 #include "structgp/core/row_subset.h"
 #include "structgp/internal/cholesky.h"
@@ -271,15 +274,17 @@ std::vector<int> EulerLagrangeGP::InducingRows(const ConstMatrixRef& X, int coun
 }
 
 Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                                  int inducing_count, InducingRule rule) {
+                                  int inducing_count, InducingRule rule, int num_threads) {
   const std::vector<int> rows = InducingRows(X, inducing_count, rule);
-  return rows.empty() ? Condition(X, Y) : Condition(X, Y, SelectRows(X, rows));
+  return rows.empty() ? Condition(X, Y, Matrix(), num_threads)
+                      : Condition(X, Y, SelectRows(X, rows), num_threads);
 }
 
 Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                                  const ConstMatrixRef& inducing) {
+                                  const ConstMatrixRef& inducing, int num_threads) {
   const int n = num_joints();
   CheckData(X, Y, n);
+  Require(num_threads >= 1, "expected num_threads >= 1, got " + std::to_string(num_threads));
   const Vector& noise = hyper_.noise_std;
   if (inducing.size() == 0) {
     Matrix C = Covariance(kernel_, hyper_, effects_.get(), X, X, true);
@@ -311,18 +316,56 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   Kzz.diagonal().array() += 1e-8 * Kzz.diagonal().mean();
   Eigen::LLT<Matrix> llt(Kzz);
   if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
-  Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing, X, false);  // (p N) x (m N)
+  // V = L^-1 K_ZX S^-1/2 block by block of training states: B = I + sum_b V_b V_b^T and
+  // vy = sum_b V_b S_b^-1/2 y_b, each worker over its share of the blocks.
   Vector ys = Stack(Y);
-  for (Eigen::Index r = 0; r < V.cols(); ++r) {
-    V.col(r) /= noise[r % n];
-    ys[r] /= noise[r % n];
+  for (Eigen::Index r = 0; r < ys.size(); ++r) ys[r] /= noise[r % n];
+  const Eigen::Index pn = Kzz.rows();
+  const Eigen::Index blocks = (X.rows() + kDtcBlockStates - 1) / kDtcBlockStates;
+  const int workers =
+      static_cast<int>(std::max<Eigen::Index>(1, std::min<Eigen::Index>(num_threads, blocks)));
+  std::vector<Matrix> B_parts(static_cast<size_t>(workers));
+  std::vector<Vector> vy_parts(static_cast<size_t>(workers));
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(workers));
+  const auto& L = llt.matrixL();
+  auto work = [&](int w) {
+    try {
+      Matrix& Bw = B_parts[static_cast<size_t>(w)];
+      Vector& vyw = vy_parts[static_cast<size_t>(w)];
+      Bw.setZero(pn, pn);
+      vyw.setZero(pn);
+      for (Eigen::Index b = w; b < blocks; b += workers) {
+        const Eigen::Index first = b * kDtcBlockStates;
+        const Eigen::Index count = std::min(kDtcBlockStates, X.rows() - first);
+        Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing,
+                              X.middleRows(first, count), false);  // (p N) x (count N)
+        for (Eigen::Index r = 0; r < V.cols(); ++r) V.col(r) /= noise[r % n];
+        L.solveInPlace(V);
+        Bw.selfadjointView<Eigen::Lower>().rankUpdate(V);
+        vyw.noalias() += V * ys.segment(first * n, count * n);
+      }
+    } catch (...) {
+      errors[static_cast<size_t>(w)] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> threads;
+  threads.reserve(static_cast<size_t>(workers) - 1);
+  for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
+  work(0);
+  for (auto& t : threads) t.join();
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
   }
-  llt.matrixL().solveInPlace(V);
-  Matrix B = Matrix::Identity(V.rows(), V.rows());
-  B.selfadjointView<Eigen::Lower>().rankUpdate(V);
+  Matrix B = std::move(B_parts[0]);
+  Vector vy = std::move(vy_parts[0]);
+  for (int w = 1; w < workers; ++w) {
+    B.triangularView<Eigen::Lower>() += B_parts[static_cast<size_t>(w)];
+    vy += vy_parts[static_cast<size_t>(w)];
+  }
+  B_parts.clear();
+  B.diagonal().array() += 1.0;
   Eigen::LLT<Matrix> llt_b(B);
   if (llt_b.info() != Eigen::Success) return Status::kNotPositiveDefinite;
-  const Vector vy = V * ys;
   alpha_ = llt.matrixU().solve(llt_b.solve(vy));
   // log N(y; 0, Q + S), Q = K_XZ K_ZZ^-1 K_ZX: |Q + S| = |S| |B| and
   // y^T (Q + S)^-1 y = |S^-1/2 y|^2 - |L_B^-1 V S^-1/2 y|^2.

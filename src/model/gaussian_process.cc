@@ -164,7 +164,7 @@ GaussianProcess GaussianProcess::EulerLagrangeFromData(
   GaussianProcess gp =
       EulerLagrange(num_joints, friction, hyper, batch, std::move(effects), effect_prior_variance);
   auto model = std::make_unique<EulerLagrangeGP>(*gp.euler_hyper_, gp.euler_effects_);
-  const Status status = model->Condition(inputs, targets, inducing);
+  const Status status = model->Condition(inputs, targets, inducing, batch.num_threads);
   if (status != Status::kOk) {
     throw std::invalid_argument(
         std::string("GaussianProcess::EulerLagrangeFromData: the posterior cannot be "
@@ -224,7 +224,9 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   }
   if (euler_hyper_) {
     auto model = std::make_unique<EulerLagrangeGP>(*euler_hyper_, euler_effects_);
-    const Status status = model->Condition(X, Y, batch_.inducing_states);
+    const Status status = model->Condition(X, Y, batch_.inducing_states,
+                                           EulerLagrangeGP::InducingRule::kCoverStates,
+                                           batch_.num_threads);
     if (status != Status::kOk) return status;
     euler_lagrange_ = std::move(model);
     data_rows_ = X.rows();

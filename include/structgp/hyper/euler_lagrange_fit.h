@@ -40,6 +40,8 @@ struct EulerLagrangeGPOptions {
   /// states) or kEvenlySpaced (spread over time, which can alias with a periodic trajectory).
   using InducingRule = EulerLagrangeGP::InducingRule;
   InducingRule inducing_rule = InducingRule::kCoverStates;
+  /// Workers of the DTC's accumulation over the training states (EulerLagrangeGP::Condition).
+  int num_threads = 1;
   int max_iterations = 80;
   /// Throws std::invalid_argument naming the first bad field.
   void Validate() const;

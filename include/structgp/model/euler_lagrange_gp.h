@@ -119,9 +119,19 @@ class EulerLagrangeGP {
 
   /// The posterior on (X, Y): exact when inducing is empty, else DTC through the inducing
   /// states (p x 3N). kNotPositiveDefinite when a factorisation fails (the model is then
-  /// unchanged). Throws std::invalid_argument on bad sizes or non-finite data.
+  /// unchanged). Throws std::invalid_argument on bad sizes, non-finite data or
+  /// num_threads < 1.
+  ///
+  /// DTC takes the training states in blocks of kDtcBlockStates: each block's covariance with
+  /// the inducing states is formed, solved against their factor and folded into the (p N) x
+  /// (p N) system, so memory is O((p N)^2) per worker, not the O(p N m N) of the whole
+  /// cross-covariance. With num_threads > 1 the blocks are shared by that many workers, each
+  /// with its own (p N)^2 accumulator, summed in worker order: the result differs from one
+  /// worker's by the order of floating-point additions only (the same for the same count).
   Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                   const ConstMatrixRef& inducing = Matrix());
+                   const ConstMatrixRef& inducing = Matrix(), int num_threads = 1);
+  /// Training states per block of the DTC's accumulation (see Condition).
+  static constexpr Eigen::Index kDtcBlockStates = 128;
 
   /// How the inducing states are chosen among the training states.
   enum class InducingRule {
@@ -134,7 +144,7 @@ class EulerLagrangeGP {
   /// The posterior on (X, Y) through the states of InducingRows(X, count, rule): the one place
   /// the library chooses them (GaussianProcess::Fit, FitEulerLagrangeGP).
   Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y, int inducing_count,
-                   InducingRule rule = InducingRule::kCoverStates);
+                   InducingRule rule = InducingRule::kCoverStates, int num_threads = 1);
   bool conditioned() const { return alpha_.size() > 0; }
 
   /// The states the posterior is held at: the training states (exact) or the inducing states

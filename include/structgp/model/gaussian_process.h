@@ -47,8 +47,10 @@ inline constexpr int kDefaultMaxKernelRows = 5000;
 /// How a batch fit handles large data sets.
 struct BatchFitOptions {
   /// Weight space: worker threads that accumulate Phi^T Phi (AccumulateStatistics); the
-  /// result equals the single-thread one up to the order of floating-point additions. More
-  /// than one needs a feature map whose Evaluate is thread-safe (see AccumulateStatistics).
+  /// Euler-Lagrange form's DTC: workers over the blocks of training states
+  /// (EulerLagrangeGP::Condition). The result equals the single-thread one up to the order of
+  /// floating-point additions. More than one needs a feature map whose Evaluate is
+  /// thread-safe (see AccumulateStatistics).
   int num_threads = 1;
   /// Weight space: samples whose features are held at once, per worker.
   Eigen::Index chunk_rows = kDefaultChunkRows;
