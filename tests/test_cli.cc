@@ -172,6 +172,11 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   EXPECT_EQ(r.code, 0) << r.err;
   r = RunCli(dir, {"evaluate", "--model", lagk, "--data", test});
   EXPECT_EQ(r.code, 0) << r.err;
+  // Refactorised on load by two workers: the same errors to the printed digits.
+  const CliResult threaded =
+      RunCli(dir, {"evaluate", "--model", lagk, "--data", test, "--threads", "2"});
+  EXPECT_EQ(threaded.code, 0) << threaded.err;
+  EXPECT_EQ(threaded.out, r.out);
   r = RunCli(dir, {"diagnose", "--model", lagk, "--data", test, "--json",
                    dir.File("lagk.findings.json")});
   EXPECT_EQ(r.code, 0) << r.err;
@@ -297,6 +302,10 @@ TEST(Cli, BadInputGivesExitCode2AClearMessageAndNoOutput) {
        {"fit", "--data", good, "--model", "polx", "--out", out},
        {"--model: model 'polx'"},
        {out}},
+      {"no thread",
+       {"evaluate", "--model", model, "--data", good, "--threads", "0"},
+       {"--threads"},
+       {}},
       {"bad effect spec",
        {"fit", "--data", good, "--model", "pol", "--effects", "frobnicate@1", "--out", out},
        {"--effects: ", "frobnicate"},

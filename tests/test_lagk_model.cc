@@ -144,6 +144,19 @@ TEST(LagkModel, ModelFileRoundTripsExactAndThroughInducingStates) {
     EXPECT_EQ(m1, m2) << "inducing " << inducing;
     EXPECT_EQ(s1, s2) << "inducing " << inducing;
     EXPECT_EQ(fit.model.gp().LogMarginalLikelihood(), loaded.gp().LogMarginalLikelihood());
+    // Loaded on three workers (400 rows: four blocks of the DTC's accumulation): the same
+    // posterior to the order of additions.
+    LoadOptions three;
+    three.num_threads = 3;
+    const RobotModel threaded = ParseModelFile(ModelFileText(fit.model), "lagk.json", three);
+    Matrix m3, s3;
+    threaded.PredictRows(t.X, &m3, &s3);
+    EXPECT_LT((m3 - m1).cwiseAbs().maxCoeff(), 1e-10 * (1.0 + m1.cwiseAbs().maxCoeff()));
+    EXPECT_LT((s3 - s1).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + s1.cwiseAbs().maxCoeff()));
+    LoadOptions none;
+    none.num_threads = 0;
+    EXPECT_THROW(ParseModelFile(ModelFileText(fit.model), "lagk.json", none),
+                 std::invalid_argument);
   }
 }
 

@@ -80,6 +80,14 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
       ->capture_default_str();
 }
 
+void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options) {
+  command->add_option("--threads", options->num_threads,
+                      "Threads refactorising a lagk model through its inducing states on load "
+                      "(and of the diagnosis's refits)")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+}
+
 std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags) {
   if (flags.urdf.empty()) {
     if (!flags.root.empty() || !flags.tip.empty()) {

@@ -20,6 +20,7 @@
 #include "structgp/diagnose/diagnosis_report.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/internal/text.h"
+#include "structgp/io/model_file.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/report/report.h"
@@ -84,6 +85,10 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags);
 /// The chain of --urdf (null without --urdf). UsageError naming the flag for a bad --gravity,
 /// and for a URDF that cannot be read or has no such chain (the message names the file).
 std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags);
+
+/// --threads of the commands that read a model file (LoadOptions::num_threads: a lagk model
+/// through inducing states is factorised again on load, and the diagnosis refits with them).
+void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options);
 
 /// "D = 134 features", "P = 42 parameters", "kernel model": the size of a model, for summaries.
 std::string ModelSize(const RobotModel& model);

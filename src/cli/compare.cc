@@ -33,6 +33,7 @@ class CompareCommand : public Command {
         "Example:\n"
         "  structgp compare --model before.json --model after.json --data test.csv "
         "--report compare.html");
+    AddLoadThreadsFlag(cmd, &load_);
     return cmd;
   }
 
@@ -46,7 +47,7 @@ class CompareCommand : public Command {
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     std::vector<RobotModel> models;
     for (const auto& path : models_) {
-      models.push_back(LoadModel(path));
+      models.push_back(LoadModel(path, load_));
       if (models.back().num_joints() != models.front().num_joints()) {
         throw UsageError("--model '" + path + "': has " +
                          std::to_string(models.back().num_joints()) + " joints, '" +
@@ -131,6 +132,7 @@ class CompareCommand : public Command {
 
  private:
   std::vector<std::string> models_;
+  LoadOptions load_;
   std::string data_, json_, report_;
 };
 

@@ -76,6 +76,7 @@ class DiagnoseCommand : public Command {
         "Example:\n"
         "  structgp diagnose --model model.json --data test.csv --json findings.json "
         "--report report.html");
+    AddLoadThreadsFlag(cmd, &load_);
     return cmd;
   }
 
@@ -83,7 +84,7 @@ class DiagnoseCommand : public Command {
     CheckOutputPath("--json", json_);
     if (!report_.empty()) CheckOutputPath("--report", report_);
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
-    const RobotModel model = LoadModel(model_);
+    const RobotModel model = LoadModel(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);
     if (!train_.empty()) {
@@ -136,6 +137,7 @@ class DiagnoseCommand : public Command {
 
  private:
   std::string model_, data_, json_, report_, train_;
+  LoadOptions load_;
   DiagnosisOptions options_;
 };
 

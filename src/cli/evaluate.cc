@@ -26,13 +26,14 @@ class EvaluateCommand : public Command {
         "tau_j; 'all' is the RMS over every joint and sample and the mean nMSE of the joints.\n"
         "Example:\n"
         "  structgp evaluate --model model.json --data test.csv --json errors.json");
+    AddLoadThreadsFlag(cmd, &load_);
     return cmd;
   }
 
   int Run() override {
     if (!json_.empty()) CheckOutputPath("--json", json_);
     std::FILE* const text_out = TextStream({{"--json", json_}});
-    const RobotModel model = LoadModel(model_);
+    const RobotModel model = LoadModel(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Predictions p = Predict(model, data);
     const Errors e = ComputeErrors(p.mean, data.Y);
@@ -65,6 +66,7 @@ class EvaluateCommand : public Command {
 
  private:
   std::string model_, data_, json_;
+  LoadOptions load_;
 };
 
 }  // namespace

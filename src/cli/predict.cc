@@ -35,13 +35,14 @@ class PredictCommand : public Command {
         "the posterior standard deviation of the mean torque (without measurement noise).\n"
         "Example:\n"
         "  structgp predict --model model.json --data test.csv --out pred.csv --components");
+    AddLoadThreadsFlag(cmd, &load_);
     return cmd;
   }
 
   int Run() override {
     CheckOutputPath("--out", out_);
     std::FILE* const text_out = TextStream({{"--out", out_}});
-    const RobotModel model = LoadModel(model_);
+    const RobotModel model = LoadModel(model_, load_);
     if (components_ && !model.has_components()) {
       throw UsageError("--components: needs a weight-space pol or motor model, or rbd or lag; '" + model_ +
                        "' is " + ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) +
@@ -96,6 +97,7 @@ class PredictCommand : public Command {
 
  private:
   std::string model_, data_, out_;
+  LoadOptions load_;
   bool components_ = false;
 };
 

@@ -493,7 +493,12 @@ void SaveModel(const std::string& path, const RobotModel& model) {
 
 // ---- loading --------------------------------------------------------------------------------
 
-RobotModel ParseModelFile(const std::string& text, const std::string& path) {
+RobotModel ParseModelFile(const std::string& text, const std::string& path,
+                          const LoadOptions& load) {
+  if (load.num_threads < 1) {
+    throw std::invalid_argument("LoadOptions::num_threads: expected >= 1, got " +
+                                std::to_string(load.num_threads));
+  }
   const FieldReader r(path);
   const Json doc = ParseJson(text, path);
   if (!doc.is_object()) {
@@ -621,6 +626,7 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
     state.spec = spec;
     state.num_joints = num_joints;
     state.options = options;
+    state.options.batch.num_threads = load.num_threads;
     state.hyperparameters = hyper;
     state.form = active;
     if (probe.kernel() != nullptr) {
@@ -708,7 +714,11 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path) {
   }
 }
 
-RobotModel LoadModel(const std::string& path) {
+RobotModel LoadModel(const std::string& path, const LoadOptions& options) {
+  if (options.num_threads < 1) {
+    throw std::invalid_argument("LoadOptions::num_threads: expected >= 1, got " +
+                                std::to_string(options.num_threads));
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     throw DataError(path, 0, 0, std::string("cannot open for reading: ") + std::strerror(errno));
@@ -718,7 +728,7 @@ RobotModel LoadModel(const std::string& path) {
   if (in.bad()) {
     throw DataError(path, 0, 0, std::string("cannot read: ") + std::strerror(errno));
   }
-  return ParseModelFile(buffer.str(), path);
+  return ParseModelFile(buffer.str(), path, options);
 }
 
 }  // namespace structgp

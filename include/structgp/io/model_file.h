@@ -63,14 +63,24 @@ std::string ModelFileText(const RobotModel& model);
 /// written (the previous file is then left untouched).
 void SaveModel(const std::string& path, const RobotModel& model);
 
+/// How a model file is read.
+struct LoadOptions {
+  /// Workers of the posterior's factorisation where a model file holds the data rather than
+  /// the posterior (lagk through inducing states: EulerLagrangeGP::Condition); the model's
+  /// later batch fits (RobotModelOptions::batch) use them too. >= 1.
+  int num_threads = 1;
+};
+
 /// Reads a model file. `path` only names the source in error messages. Throws DataError
-/// naming `path` and the problem.
-RobotModel ParseModelFile(const std::string& text, const std::string& path);
+/// naming `path` and the problem, std::invalid_argument when options.num_threads < 1.
+RobotModel ParseModelFile(const std::string& text, const std::string& path,
+                          const LoadOptions& options = LoadOptions());
 
 /// Reads a model file written by SaveModel. Throws DataError naming the file and the problem:
 /// it cannot be read, is not JSON (with line and column), is not a structgp model file, has
-/// an unsupported version, fails its checksum, or holds an inconsistent model.
-RobotModel LoadModel(const std::string& path);
+/// an unsupported version, fails its checksum, or holds an inconsistent model;
+/// std::invalid_argument when options.num_threads < 1.
+RobotModel LoadModel(const std::string& path, const LoadOptions& options = LoadOptions());
 
 }  // namespace structgp
 
