@@ -62,13 +62,17 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
     ctest --test-dir "$asan" --output-on-failure -j "$jobs" -E "$release_only"
 
   # TSan: the tests that run threads (online learner next to a control loop, multi-threaded
-  # batch statistics, Nystrom features built on several threads); only their targets are built.
+  # batch statistics, Nystrom features built on several threads, the lagk posterior's DTC on
+  # several workers); only their targets are built.
   tsan=${STRUCTGP_TSAN_BUILD_DIR:-build-tsan}
   cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=thread \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
-  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit test_concurrent_predict
+  cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit test_concurrent_predict \
+        test_euler_lagrange_gp
+  threaded='^test_(online|nystrom|batch_fit|concurrent_predict)\.'
+  threaded+='|^test_euler_lagrange_gp\.EulerLagrangeGP\.DtcOverBlocksAndWorkers'
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
-    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R '^test_(online|nystrom|batch_fit|concurrent_predict)\.'
+    ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R "$threaded"
 
   # libFuzzer, each target from its seed corpus: a fixed number of inputs from a fixed seed, so that the result is reproducible (new bugs
   # are hunted with time-bounded runs: scripts/run-fuzzers.sh SECONDS).
