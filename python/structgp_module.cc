@@ -463,8 +463,17 @@ save / Model.load use the CLI's model files.
            "space has one per joint torque (arrays of N).")
       .def("save", &Model::Save, py::arg("path"),
            "Writes the model file of `structgp fit --out` (atomically).")
-      .def_static("load", [](const std::string& path) { return Model(LoadModel(path)); },
-                  py::arg("path"), "Reads a model file written by save or by `structgp fit`.")
+      .def_static(
+          "load",
+          [](const std::string& path, int threads) {
+            LoadOptions options;
+            options.num_threads = threads;
+            py::gil_scoped_release release;
+            return Model(LoadModel(path, options));
+          },
+          py::arg("path"), py::arg("threads") = 1,
+          "Reads a model file written by save or by `structgp fit`. threads: workers "
+          "factorising a lagk model's posterior again (the same result for any number).")
       .def("model_file", &Model::ModelFile, "The text save writes.")
       .def_property_readonly("spec", [](const Model& s) { return ModelLabel(s.spec()); },
                              "'pol+fri + coulomb@2': the model and its effects")

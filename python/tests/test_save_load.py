@@ -88,6 +88,11 @@ def test_a_saved_lagk_model_loads_back_exactly(logs, tmp_path):
     model.save(str(path))
     assert json.loads(path.read_text())["form"] == "euler_lagrange"
     loaded = structgp.Model.load(str(path))
-    for a, b in zip(model.predict(test.X, None, return_std=True),
-                    loaded.predict(test.X, None, return_std=True)):
+    threaded = structgp.Model.load(str(path), threads=3)
+    for a, b, c in zip(model.predict(test.X, None, return_std=True),
+                       loaded.predict(test.X, None, return_std=True),
+                       threaded.predict(test.X, None, return_std=True)):
         np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(a, c)
+    with pytest.raises(ValueError):
+        structgp.Model.load(str(path), threads=0)

@@ -83,7 +83,7 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
 void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options) {
   command->add_option("--threads", options->num_threads,
                       "Threads refactorising a lagk model through its inducing states on load "
-                      "(and of the diagnosis's refits)")
+                      "(the same result for any number; each needs (p N)^2 doubles)")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
 }

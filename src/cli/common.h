@@ -87,7 +87,7 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags);
 std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags);
 
 /// --threads of the commands that read a model file (LoadOptions::num_threads: a lagk model
-/// through inducing states is factorised again on load, and the diagnosis refits with them).
+/// through inducing states is factorised again on load).
 void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options);
 
 /// "D = 134 features", "P = 42 parameters", "kernel model": the size of a model, for summaries.

@@ -55,7 +55,6 @@ class ReplayCommand : public Command {
         "Example:\n"
         "  structgp replay --data log.csv --model model.json --forgetting 0.999 \\\n"
         "      --out errors.csv --json replay.json --save model2.json --report replay.html");
-    AddLoadThreadsFlag(cmd, &load_);
     return cmd;
   }
 
@@ -77,7 +76,7 @@ class ReplayCommand : public Command {
     RobotData data;
     if (!model_.empty()) {
       if (!effects_.empty()) throw UsageError("--effects goes with --model-spec, not --model");
-      start = std::make_unique<RobotModel>(LoadModel(model_, load_));
+      start = std::make_unique<RobotModel>(LoadModel(model_));
       data = ReadData(data_, start->num_joints());
     } else {
       const ModelSpec spec = ParseSpecFlags(spec_, effects_);
@@ -165,7 +164,6 @@ class ReplayCommand : public Command {
   }
 
   std::string data_, model_, spec_, effects_, out_, save_, json_, report_;
-  LoadOptions load_;
   double forgetting_ = 1.0;
   int window_ = 0;
   RobotFlags robot_;

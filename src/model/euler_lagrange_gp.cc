@@ -317,52 +317,59 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   Eigen::LLT<Matrix> llt(Kzz);
   if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
   // V = L^-1 K_ZX S^-1/2 block by block of training states: B = I + sum_b V_b V_b^T and
-  // vy = sum_b V_b S_b^-1/2 y_b, each worker over its share of the blocks.
+  // vy = sum_b V_b S_b^-1/2 y_b. The workers take the blocks a group at a time, each block's
+  // terms into its worker's scratch, and the calling thread adds them in block order: the
+  // same sums in the same order for any number of workers.
   Vector ys = Stack(Y);
   for (Eigen::Index r = 0; r < ys.size(); ++r) ys[r] /= noise[r % n];
   const Eigen::Index pn = Kzz.rows();
+  Kzz = Matrix();  // the factor holds it now
   const Eigen::Index blocks = (X.rows() + kDtcBlockStates - 1) / kDtcBlockStates;
   const int workers =
       static_cast<int>(std::max<Eigen::Index>(1, std::min<Eigen::Index>(num_threads, blocks)));
-  std::vector<Matrix> B_parts(static_cast<size_t>(workers));
-  std::vector<Vector> vy_parts(static_cast<size_t>(workers));
+  std::vector<Matrix> B_block(static_cast<size_t>(workers), Matrix(pn, pn));
+  std::vector<Vector> vy_block(static_cast<size_t>(workers), Vector(pn));
   std::vector<std::exception_ptr> errors(static_cast<size_t>(workers));
   const auto& L = llt.matrixL();
-  auto work = [&](int w) {
-    try {
-      Matrix& Bw = B_parts[static_cast<size_t>(w)];
-      Vector& vyw = vy_parts[static_cast<size_t>(w)];
-      Bw.setZero(pn, pn);
-      vyw.setZero(pn);
-      for (Eigen::Index b = w; b < blocks; b += workers) {
-        const Eigen::Index first = b * kDtcBlockStates;
+  Matrix B = Matrix::Zero(pn, pn);
+  Vector vy = Vector::Zero(pn);
+  for (Eigen::Index group = 0; group < blocks; group += workers) {
+    const int in_group = static_cast<int>(std::min<Eigen::Index>(workers, blocks - group));
+    auto work = [&](int w) {
+      try {
+        const Eigen::Index first = (group + w) * kDtcBlockStates;
         const Eigen::Index count = std::min(kDtcBlockStates, X.rows() - first);
         Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing,
                               X.middleRows(first, count), false);  // (p N) x (count N)
         for (Eigen::Index r = 0; r < V.cols(); ++r) V.col(r) /= noise[r % n];
         L.solveInPlace(V);
+        Matrix& Bw = B_block[static_cast<size_t>(w)];
+        Bw.triangularView<Eigen::Lower>().setZero();
         Bw.selfadjointView<Eigen::Lower>().rankUpdate(V);
-        vyw.noalias() += V * ys.segment(first * n, count * n);
+        vy_block[static_cast<size_t>(w)].noalias() = V * ys.segment(first * n, count * n);
+      } catch (...) {
+        errors[static_cast<size_t>(w)] = std::current_exception();
       }
+    };
+    std::vector<std::thread> threads;
+    threads.reserve(static_cast<size_t>(in_group) - 1);
+    try {
+      for (int w = 1; w < in_group; ++w) threads.emplace_back(work, w);
     } catch (...) {
-      errors[static_cast<size_t>(w)] = std::current_exception();
+      for (auto& t : threads) t.join();
+      throw;
     }
-  };
-  std::vector<std::thread> threads;
-  threads.reserve(static_cast<size_t>(workers) - 1);
-  for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
-  work(0);
-  for (auto& t : threads) t.join();
-  for (const auto& e : errors) {
-    if (e) std::rethrow_exception(e);
+    work(0);
+    for (auto& t : threads) t.join();
+    for (const auto& e : errors) {
+      if (e) std::rethrow_exception(e);
+    }
+    for (int w = 0; w < in_group; ++w) {
+      B.triangularView<Eigen::Lower>() += B_block[static_cast<size_t>(w)];
+      vy += vy_block[static_cast<size_t>(w)];
+    }
   }
-  Matrix B = std::move(B_parts[0]);
-  Vector vy = std::move(vy_parts[0]);
-  for (int w = 1; w < workers; ++w) {
-    B.triangularView<Eigen::Lower>() += B_parts[static_cast<size_t>(w)];
-    vy += vy_parts[static_cast<size_t>(w)];
-  }
-  B_parts.clear();
+  B_block.clear();
   B.diagonal().array() += 1.0;
   Eigen::LLT<Matrix> llt_b(B);
   if (llt_b.info() != Eigen::Success) return Status::kNotPositiveDefinite;

@@ -129,7 +129,12 @@ SufficientStatistics AccumulateStatistics(const FeatureMap& map, const ConstMatr
       errors[static_cast<size_t>(w)] = std::current_exception();
     }
   };
-  for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
+  try {
+    for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
+  } catch (...) {
+    for (auto& t : threads) t.join();
+    throw;
+  }
   work(0);
   for (auto& t : threads) t.join();
   for (const auto& e : errors) {

@@ -15,7 +15,7 @@
 /// Hyper-parameters: sigma of the kernel's trigonometric factors, the 2N part weights, one noise
 /// std per joint (FitEulerLagrangeGP in hyper/euler_lagrange_fit.h chooses them). The posterior
 /// is exact, or through inducing states the deterministic training conditional (DTC):
-/// O(m N (p N)^2) time and O(m N p N) memory instead of O((m N)^3) and O((m N)^2).
+/// O(m N (p N)^2) time and O((p N)^2) memory instead of O((m N)^3) and O((m N)^2).
 ///
 /// Inputs x = (q, qd, qdd) as rows of X (m x 3N); torques Y (m x N).
 
@@ -123,11 +123,11 @@ class EulerLagrangeGP {
   /// num_threads < 1.
   ///
   /// DTC takes the training states in blocks of kDtcBlockStates: each block's covariance with
-  /// the inducing states is formed, solved against their factor and folded into the (p N) x
-  /// (p N) system, so memory is O((p N)^2) per worker, not the O(p N m N) of the whole
-  /// cross-covariance. With num_threads > 1 the blocks are shared by that many workers, each
-  /// with its own (p N)^2 accumulator, summed in worker order: the result differs from one
-  /// worker's by the order of floating-point additions only (the same for the same count).
+  /// the inducing states is formed, solved against their factor and its terms added to the
+  /// (p N) x (p N) system in block order, so memory is (num_threads + 1) (p N)^2 doubles plus
+  /// one block's columns per worker, not the (p N) x (m N) of the whole cross-covariance. The
+  /// workers (num_threads, at most the number of blocks) take the blocks a group at a time;
+  /// the result is the same bit for bit for any number of them.
   Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const ConstMatrixRef& inducing = Matrix(), int num_threads = 1);
   /// Training states per block of the DTC's accumulation (see Condition).

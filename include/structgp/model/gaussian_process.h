@@ -48,9 +48,10 @@ inline constexpr int kDefaultMaxKernelRows = 5000;
 struct BatchFitOptions {
   /// Weight space: worker threads that accumulate Phi^T Phi (AccumulateStatistics); the
   /// Euler-Lagrange form's DTC: workers over the blocks of training states
-  /// (EulerLagrangeGP::Condition). The result equals the single-thread one up to the order of
-  /// floating-point additions. More than one needs a feature map whose Evaluate is
-  /// thread-safe (see AccumulateStatistics).
+  /// (EulerLagrangeGP::Condition, the same result bit for bit for any number). Weight space:
+  /// the result equals the single-thread one up to the order of floating-point additions.
+  /// More than one needs a feature map whose Evaluate is thread-safe (see
+  /// AccumulateStatistics).
   int num_threads = 1;
   /// Weight space: samples whose features are held at once, per worker.
   Eigen::Index chunk_rows = kDefaultChunkRows;
@@ -61,7 +62,8 @@ struct BatchFitOptions {
   /// Euler-Lagrange form: with more rows than this, the posterior conditions on every row
   /// through this many inducing states chosen to cover the training states (the deterministic
   /// training conditional, FarthestStateRows in core/row_subset.h): O(m N (p N)^2) time and
-  /// O(m N p N) memory. Up to it the posterior is exact, O((m N)^3). 0: always exact.
+  /// O((p N)^2) memory per worker (num_threads). Up to it the posterior is exact,
+  /// O((m N)^3). 0: always exact.
   int inducing_states = 800;
 };
 
