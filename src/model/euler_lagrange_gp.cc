@@ -2,16 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
-#include <exception>
 #include <limits>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
 #include "structgp/core/row_subset.h"
 #include "structgp/internal/cholesky.h"
+#include "structgp/internal/workers.h"
 
 namespace structgp {
 namespace {
@@ -329,41 +328,23 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
       static_cast<int>(std::max<Eigen::Index>(1, std::min<Eigen::Index>(num_threads, blocks)));
   std::vector<Matrix> B_block(static_cast<size_t>(workers), Matrix(pn, pn));
   std::vector<Vector> vy_block(static_cast<size_t>(workers), Vector(pn));
-  std::vector<std::exception_ptr> errors(static_cast<size_t>(workers));
   const auto& L = llt.matrixL();
   Matrix B = Matrix::Zero(pn, pn);
   Vector vy = Vector::Zero(pn);
   for (Eigen::Index group = 0; group < blocks; group += workers) {
     const int in_group = static_cast<int>(std::min<Eigen::Index>(workers, blocks - group));
-    auto work = [&](int w) {
-      try {
-        const Eigen::Index first = (group + w) * kDtcBlockStates;
-        const Eigen::Index count = std::min(kDtcBlockStates, X.rows() - first);
-        Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing,
-                              X.middleRows(first, count), false);  // (p N) x (count N)
-        for (Eigen::Index r = 0; r < V.cols(); ++r) V.col(r) /= noise[r % n];
-        L.solveInPlace(V);
-        Matrix& Bw = B_block[static_cast<size_t>(w)];
-        Bw.triangularView<Eigen::Lower>().setZero();
-        Bw.selfadjointView<Eigen::Lower>().rankUpdate(V);
-        vy_block[static_cast<size_t>(w)].noalias() = V * ys.segment(first * n, count * n);
-      } catch (...) {
-        errors[static_cast<size_t>(w)] = std::current_exception();
-      }
-    };
-    std::vector<std::thread> threads;
-    threads.reserve(static_cast<size_t>(in_group) - 1);
-    try {
-      for (int w = 1; w < in_group; ++w) threads.emplace_back(work, w);
-    } catch (...) {
-      for (auto& t : threads) t.join();
-      throw;
-    }
-    work(0);
-    for (auto& t : threads) t.join();
-    for (const auto& e : errors) {
-      if (e) std::rethrow_exception(e);
-    }
+    internal::RunWorkers(in_group, [&](int w) {
+      const Eigen::Index first = (group + w) * kDtcBlockStates;
+      const Eigen::Index count = std::min(kDtcBlockStates, X.rows() - first);
+      Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing, X.middleRows(first, count),
+                            false);  // (p N) x (count N)
+      for (Eigen::Index r = 0; r < V.cols(); ++r) V.col(r) /= noise[r % n];
+      L.solveInPlace(V);
+      Matrix& Bw = B_block[static_cast<size_t>(w)];
+      Bw.triangularView<Eigen::Lower>().setZero();
+      Bw.selfadjointView<Eigen::Lower>().rankUpdate(V);
+      vy_block[static_cast<size_t>(w)].noalias() = V * ys.segment(first * n, count * n);
+    });
     for (int w = 0; w < in_group; ++w) {
       B.triangularView<Eigen::Lower>() += B_block[static_cast<size_t>(w)];
       vy += vy_block[static_cast<size_t>(w)];

@@ -1,13 +1,12 @@
 #include "structgp/model/sufficient_statistics.h"
 
 #include <algorithm>
-#include <exception>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "structgp/core/validate.h"
+#include "structgp/internal/workers.h"
 
 namespace structgp {
 
@@ -118,28 +117,10 @@ SufficientStatistics AccumulateStatistics(const FeatureMap& map, const ConstMatr
   std::vector<SufficientStatistics> parts;
   parts.reserve(static_cast<size_t>(workers));
   for (int w = 0; w < workers; ++w) parts.emplace_back(D, P);
-  std::vector<std::exception_ptr> errors(static_cast<size_t>(workers));
-  std::vector<std::thread> threads;
-  threads.reserve(static_cast<size_t>(workers) - 1);
-  auto work = [&](int w) {
-    try {
-      AccumulateRange(map, X, Y, bounds[static_cast<size_t>(w)], bounds[static_cast<size_t>(w) + 1],
-                      options.chunk_rows, &parts[static_cast<size_t>(w)]);
-    } catch (...) {
-      errors[static_cast<size_t>(w)] = std::current_exception();
-    }
-  };
-  try {
-    for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
-  } catch (...) {
-    for (auto& t : threads) t.join();
-    throw;
-  }
-  work(0);
-  for (auto& t : threads) t.join();
-  for (const auto& e : errors) {
-    if (e) std::rethrow_exception(e);
-  }
+  internal::RunWorkers(workers, [&](int w) {
+    AccumulateRange(map, X, Y, bounds[static_cast<size_t>(w)], bounds[static_cast<size_t>(w) + 1],
+                    options.chunk_rows, &parts[static_cast<size_t>(w)]);
+  });
   for (const auto& part : parts) total.Merge(part);
   return total;
 }
