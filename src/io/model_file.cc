@@ -493,12 +493,20 @@ void SaveModel(const std::string& path, const RobotModel& model) {
 
 // ---- loading --------------------------------------------------------------------------------
 
+namespace {
+
+void CheckLoadOptions(const LoadOptions& options) {
+  if (options.num_threads < 1) {
+    throw std::invalid_argument("LoadOptions::num_threads: expected >= 1, got " +
+                                std::to_string(options.num_threads));
+  }
+}
+
+}  // namespace
+
 RobotModel ParseModelFile(const std::string& text, const std::string& path,
                           const LoadOptions& load) {
-  if (load.num_threads < 1) {
-    throw std::invalid_argument("LoadOptions::num_threads: expected >= 1, got " +
-                                std::to_string(load.num_threads));
-  }
+  CheckLoadOptions(load);
   const FieldReader r(path);
   const Json doc = ParseJson(text, path);
   if (!doc.is_object()) {
@@ -715,10 +723,7 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
 }
 
 RobotModel LoadModel(const std::string& path, const LoadOptions& options) {
-  if (options.num_threads < 1) {
-    throw std::invalid_argument("LoadOptions::num_threads: expected >= 1, got " +
-                                std::to_string(options.num_threads));
-  }
+  CheckLoadOptions(options);  // before reading the file
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     throw DataError(path, 0, 0, std::string("cannot open for reading: ") + std::strerror(errno));
