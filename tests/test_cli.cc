@@ -159,7 +159,7 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   EXPECT_TRUE(Contains(ReadFile(dir.File("rbf.findings.json")), "Nystrom features")) << r.out;
 
   // The Euler-Lagrange kernel GP (lagk+fri) on the same short log, through 100 inducing
-  // states: fit, save, predict, evaluate and diagnose from the file; a time effect is refused.
+  // states: fit, save, predict, evaluate and diagnose from the file; with a time effect.
   const std::string lagk = dir.File("lagk.json");
   r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk+fri", "--lagk-sigmas",
                    "3,30", "--lagk-ml-values", "200", "--inducing-states", "100", "--out", lagk,
@@ -181,10 +181,23 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
                    dir.File("lagk.findings.json")});
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(Contains(ReadFile(dir.File("lagk.findings.json")), "Euler-Lagrange prior")) << r.out;
+  // A time effect: the model reads the log's t column; a log without it is refused by name.
+  const std::string lagk_drift = dir.File("lagk_drift.json");
   r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk", "--effects",
-                   "drift@2", "--out", dir.File("x.json"), "-q"});
+                   "drift@2", "--lagk-sigmas", "3", "--lagk-ml-values", "200", "--out",
+                   lagk_drift, "-q"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "log_effect_scale_2")) << r.out;
+  EXPECT_TRUE(Json::parse(ReadFile(lagk_drift))["uses_time"].get<bool>());
+  r = RunCli(dir, {"evaluate", "--model", lagk_drift, "--data", test});
+  EXPECT_EQ(r.code, 0) << r.err;
+  std::istringstream test_lines(ReadFile(test));
+  std::string without_t;
+  while (std::getline(test_lines, line)) without_t += line.substr(line.find(',') + 1) + "\n";
+  WriteFile(dir.File("no_t.csv"), without_t);
+  r = RunCli(dir, {"evaluate", "--model", lagk_drift, "--data", dir.File("no_t.csv")});
   EXPECT_EQ(r.code, 2);
-  EXPECT_TRUE(Contains(r.err, "not of the time")) << r.err;
+  EXPECT_TRUE(Contains(r.err, "time")) << r.err;
 }
 
 TEST(Cli, EverySubcommandHasHelp) {

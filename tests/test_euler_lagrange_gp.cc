@@ -2,7 +2,8 @@
 // RegressorGP on the Lagrangian regressor with the kernel's prior variances (weight space vs
 // kernel form); the DTC posterior with every state induced against the exact one; the evidence
 // gradient against central differences; a fit on torques of the prior's class against held-out
-// truth; and the errors a user gets for bad input.
+// truth; effects of the time against the same model without the time and the weight-space GP;
+// and the errors a user gets for bad input.
 
 #include "structgp/model/euler_lagrange_gp.h"
 #include "structgp/hyper/euler_lagrange_fit.h"
@@ -313,6 +314,119 @@ TEST(EulerLagrangeGP, EffectsAloneEqualTheWeightSpaceGPOnTheirFeatures) {
   bad.effect_prior_variance = Vector::Ones(effects->dim() + 1);
   EXPECT_THROW(EulerLagrangeGP(bad, effects), std::invalid_argument);
   EXPECT_THROW(EulerLagrangeGP(h, nullptr), std::invalid_argument);
+}
+
+// Effects of the time: the inputs end with the time, which only the effects read. (a) With
+// the kernel, friction and an effect of the state only, a map that takes the time gives the
+// posterior of the map without it (the kernel and friction read the states alone), exactly and
+// through inducing states, one state at a time without allocating. (b) A drift alone (zero
+// part weights) is the weight-space GP on its features of the time. (c) Inputs without the
+// time are refused by name.
+TEST(EulerLagrangeGP, TimeEffectsReadTheLastColumnAndTheKernelDoesNot) {
+  std::mt19937 rng(33);
+  const int n = 3, m = 36;
+  const Matrix S = RandomStates(m, n, &rng);
+  Matrix X(m, 3 * n + 1);
+  X << S, Vector::LinSpaced(m, 0.0, 12.0);
+  std::normal_distribution<double> normal;
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return normal(rng); });
+  auto coulomb = [&](bool with_time) -> std::shared_ptr<const FeatureMap> {
+    return std::make_shared<EffectFeatureMap>(n, MakeEffect("coulomb"), std::vector<int>{2},
+                                              with_time);
+  };
+  EulerLagrangeGPHyperparameters h = RandomHyper(n, true, &rng);
+  h.effect_prior_variance = Vector::Constant(coulomb(false)->dim(), 0.8);
+  h.effect_scale = Vector::LinSpaced(n, 0.7, 1.9);
+  const Matrix St = RandomStates(7, n, &rng);
+  Matrix Xt(7, 3 * n + 1);
+  Xt << St, Vector::LinSpaced(7, 30.0, 40.0);
+  for (bool through_inducing : {false, true}) {
+    EulerLagrangeGP states_only(h, coulomb(false)), with_time(h, coulomb(true));
+    EXPECT_EQ(states_only.input_dim(), 3 * n);
+    EXPECT_EQ(with_time.input_dim(), 3 * n + 1);
+    const std::vector<int> z = {0, 5, 9, 17, 22, 30, 35};
+    ASSERT_EQ(states_only.Condition(S, Y, through_inducing ? SelectRows(S, z) : Matrix()),
+              Status::kOk);
+    ASSERT_EQ(with_time.Condition(X, Y, through_inducing ? SelectRows(X, z) : Matrix()),
+              Status::kOk);
+    Matrix m1, v1, m2, v2;
+    ASSERT_EQ(states_only.Predict(St, &m1, &v1), Status::kOk);
+    ASSERT_EQ(with_time.Predict(Xt, &m2, &v2), Status::kOk);
+    EXPECT_LT((m1 - m2).cwiseAbs().maxCoeff(), 1e-12 * (1.0 + m1.cwiseAbs().maxCoeff()));
+    EXPECT_LT((v1 - v2).cwiseAbs().maxCoeff(), 1e-12 * (1.0 + v1.cwiseAbs().maxCoeff()));
+    EXPECT_NEAR(states_only.LogMarginalLikelihood(), with_time.LogMarginalLikelihood(),
+                1e-10 * std::abs(states_only.LogMarginalLikelihood()));
+    EulerLagrangeGP::Workspace w = with_time.MakeWorkspace();
+    Vector mean(n), var(n), x(3 * n + 1);
+    x = Xt.row(3).transpose();
+    std::size_t allocations = 0;
+    {
+      testing::AllocationCounter counter;
+      ASSERT_EQ(with_time.PredictOne(x, mean, var, w), Status::kOk);
+      allocations = counter.count();
+    }
+    if (testing::CountsEveryAllocation()) {
+      EXPECT_EQ(allocations, 0u);
+    }
+    EXPECT_LT((mean - m2.row(3).transpose()).cwiseAbs().maxCoeff(),
+              1e-10 * (1.0 + m2.cwiseAbs().maxCoeff()));
+    // A state without its time is refused.
+    EXPECT_EQ(with_time.PredictOne(x.head(3 * n), mean, var, w), Status::kInvalidInput);
+  }
+
+  // (b) A drift on joint 1 and the coulomb effect, alone: the weight-space GP on their features.
+  EffectParameters drift_parameters = MakeEffect("drift")->parameters();
+  drift_parameters["span"] = 6.0;
+  std::shared_ptr<const FeatureMap> effects = std::make_shared<SumFeatureMap>(
+      std::vector<std::shared_ptr<const FeatureMap>>{
+          coulomb(true), std::make_shared<EffectFeatureMap>(n, MakeEffect("drift",
+                                                                          drift_parameters),
+                                                            std::vector<int>{1}, true)});
+  EulerLagrangeGPHyperparameters e;
+  e.sigma = 3.0;
+  e.part_weights = Vector::Zero(2 * n);
+  e.effect_prior_variance = Vector::LinSpaced(effects->dim(), 0.5, 2.0);
+  e.effect_scale = Vector::LinSpaced(n, 0.7, 1.9);
+  const double sigma_n = 0.1;
+  e.noise_std = sigma_n * e.effect_scale;
+  EulerLagrangeGP gp(e, effects);
+  ASSERT_EQ(gp.Condition(X, Y), Status::kOk);
+  Matrix Phi;
+  effects->EvaluateRows(X, &Phi);
+  WeightSpaceGP twin(e.effect_prior_variance, sigma_n * sigma_n, n, e.effect_scale);
+  ASSERT_EQ(twin.Fit(Phi, Y), Status::kOk);
+  Matrix mean, var;
+  ASSERT_EQ(gp.Predict(Xt, &mean, &var), Status::kOk);
+  WeightSpaceGP::Workspace tw = twin.MakeWorkspace();
+  Vector phi(effects->dim()), tm(n), tl(n), tn(n);
+  for (Eigen::Index s = 0; s < Xt.rows(); ++s) {
+    effects->Evaluate(Xt.row(s).transpose(), phi);
+    ASSERT_EQ(twin.PredictWithVariance(phi, tm, tl, tn, tw), Status::kOk);
+    EXPECT_LT((mean.row(s).transpose() - tm).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + tm.norm()));
+    EXPECT_LT((var.row(s).transpose() - tl).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + tl.norm()));
+  }
+  // The drift's features are of the time: the prediction at other times differs.
+  Matrix later = Xt, mean_later;
+  later.col(3 * n).array() += 20.0;
+  ASSERT_EQ(gp.Predict(later, &mean_later), Status::kOk);
+  EXPECT_GT((mean_later - mean).cwiseAbs().maxCoeff(), 1e-3 * (1.0 + mean.cwiseAbs().maxCoeff()));
+
+  // (c) States without the time are refused by name, in the GP and in its fit.
+  try {
+    gp.Condition(S, Y);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("the states and the time"), std::string::npos)
+        << error.what();
+  }
+  EXPECT_EQ(gp.Predict(St, &mean), Status::kInvalidInput);
+  EulerLagrangeGPOptions o;
+  o.sigmas = {3.0};
+  o.effects = effects;
+  o.effect_prior_variance = e.effect_prior_variance;
+  EXPECT_THROW(FitEulerLagrangeGP(S, Y, o, nullptr), std::invalid_argument);
+  const EulerLagrangeGPSummary fitted = FitEulerLagrangeGP(X, Y, o, nullptr);
+  EXPECT_EQ(fitted.status, Status::kOk) << fitted.message;
 }
 
 TEST(EulerLagrangeGP, HyperparametersRoundTripThroughTheCommonType) {

@@ -1,8 +1,8 @@
 // The Euler-Lagrange kernel GP as a product model ("lagk", "lagk+fri"): FitModel against the
 // same steps by hand (FitEulerLagrangeGP's search, then EulerLagrangeGP::Condition), the model
 // file round trip (exact and through inducing states), the allocation-free one-state
-// prediction of RobotModel, effects of the state, and the clear refusals of what it does not do
-// (time effects, online updates, cross-validation); the diagnosis loop on lagk.
+// prediction of RobotModel, effects of the state and of the time, and the clear refusals of what
+// it does not do (online updates, cross-validation); the diagnosis loop on lagk.
 
 #include <cmath>
 #include <limits>
@@ -225,6 +225,54 @@ TEST(LagkModel, DiagnosisNamesTheHiddenFrictionAndNothingElse) {
   EXPECT_TRUE(none.suggestions.empty()) << none.suggestions[0].spec;
 }
 
+// A friction that drifts with time on joint 2 (the three-link arm): the diagnosis of lagk on
+// the training log names a drift on joint 2; lagk + that drift fits with the times (FitModel),
+// saves and loads with the same predictions, and predicts joint 2 of the fast log, unseen,
+// better than lagk alone; its diagnosis then names no drift again.
+TEST(LagkModel, TakesTimeEffectsThroughFitModelFileAndDiagnosis) {
+  const sim::HiddenEffectScenario drift = ThreeLinkScenario(sim::HiddenEffect::kDrift);
+  const sim::Dataset& d = drift.train;
+  const sim::Dataset& t = drift.test;
+  FitOptions options = QuickOptions();
+  options.euler_lagrange.sigmas = {10.0};
+  const FittedModel before = FitModel(ParseModelSpec("lagk"), d.X, d.Y, d.t, options);
+  ASSERT_TRUE(before.summary.IsUsable()) << before.summary.message;
+  const Diagnosis dx = Diagnose(before.model, d.X, d.Y, d.t);
+  ASSERT_EQ(dx.status, DiagnosisStatus::kOk) << dx.message;
+  const Suggestion* named = nullptr;
+  for (const Suggestion& s : dx.suggestions) {
+    if (s.effect == "drift" && s.joint == 2) named = &s;
+  }
+  ASSERT_NE(named, nullptr) << (dx.suggestions.empty() ? "no suggestion" : dx.suggestions[0].spec);
+
+  ModelSpec spec = ParseModelSpec("lagk");
+  spec.effects = ParseEffectList(named->spec);
+  const FittedModel after = FitModel(spec, d.X, d.Y, d.t, options);
+  ASSERT_TRUE(after.summary.IsUsable()) << after.summary.message;
+  EXPECT_TRUE(after.model.uses_time());
+  EXPECT_EQ(after.model.input_dim(), 3 * 3 + 1);
+  const Matrix Xt = ModelInputs(after.model, t.X, t.t);
+  Matrix mb, ma, sa;
+  before.model.PredictRows(t.X, &mb);
+  after.model.PredictRows(Xt, &ma, &sa);
+  // (0.22 -> 0.18 here; lagk with the true drift gets the same 0.18: the rest is its
+  // extrapolation to the faster motion.)
+  EXPECT_LT(Rms(ma.col(1) - t.Y.col(1)), 0.9 * Rms(mb.col(1) - t.Y.col(1)));
+  // Without the times the inputs are refused by name.
+  EXPECT_THROW(ModelInputs(after.model, t.X, Vector()), std::invalid_argument);
+
+  const RobotModel loaded = ParseModelFile(ModelFileText(after.model), "lagk_drift.json");
+  EXPECT_TRUE(loaded.uses_time());
+  Matrix ml, sl;
+  loaded.PredictRows(Xt, &ml, &sl);
+  EXPECT_EQ(ma, ml);
+  EXPECT_EQ(sa, sl);
+
+  const Diagnosis again = Diagnose(after.model, ModelInputs(after.model, d.X, d.t), d.Y, d.t);
+  ASSERT_EQ(again.status, DiagnosisStatus::kOk) << again.message;
+  for (const Suggestion& s : again.suggestions) EXPECT_NE(s.effect, "drift") << s.spec;
+}
+
 TEST(LagkModel, OneStatePredictionAllocatesNothingAndMatchesTheRows) {
   const sim::Dataset& d = Scenario().train;
   FitOptions options = QuickOptions();
@@ -267,11 +315,6 @@ TEST(LagkModel, RefusesWhatItDoesNotDoWithAClearError) {
     }
     return std::string("no exception");
   };
-  ModelSpec with_drift = ParseModelSpec("lagk+fri");
-  with_drift.effects = ParseEffectList("drift@2");
-  EXPECT_NE(message([&] { RobotModel m(with_drift, 3); }).find("not of the time"),
-            std::string::npos);
-
   FitOptions options = QuickOptions();
   options.method = HyperparameterMethod::kFixed;
   FittedModel fit = FitModel(ParseModelSpec("lagk"), d.X, d.Y, Vector(), options);

@@ -445,7 +445,8 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     // covering the rows: p states of N torques each.
     const EulerLagrangeGP& gp = *model.gp().euler_lagrange();
     const int p = std::max(1, std::min(options.nystrom_features / N, m / 2));
-    const Matrix Z = SelectRows(X.leftCols(3 * N), FarthestStateRows(X.leftCols(3 * N), p));
+    // (The rows keep the time when the model's effects take it.)
+    const Matrix Z = SelectRows(X, FarthestStateRows(X.leftCols(3 * N), p));
     base_map = std::make_shared<EulerLagrangeJointFeatureMap>(gp, Z, only_joint - 1);
     Hyperparameters h = DefaultHyperparameters(*base_map, N);
     // The features carry the prior's scale: unit output scales, the joint's own noise.

@@ -116,13 +116,17 @@ EulerLagrangeGPHyperparameters WithParameters(EulerLagrangeGPHyperparameters h,
   return h;
 }
 
-void CheckFitData(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
+// X: the 3N states, and the time last when the options' effects take it.
+void CheckFitData(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                  const EulerLagrangeGPOptions& options) {
   const int n = static_cast<int>(Y.cols());
   Require(n >= 1 && n <= kMaxEulerLagrangeJoints,
           "expected 1.." + std::to_string(kMaxEulerLagrangeJoints) + " torque columns, got " +
               std::to_string(n));
-  Require(X.cols() == 3 * n && X.rows() == Y.rows() && X.rows() > 0,
-          "expected states m x " + std::to_string(3 * n) + " beside torques m x " +
+  const int width = options.effects ? options.effects->input_dim() : 3 * n;
+  Require(X.cols() == width && X.rows() == Y.rows() && X.rows() > 0,
+          "expected " + std::string(width == 3 * n ? "states" : "states and times") + " m x " +
+              std::to_string(width) + " beside torques m x " +
               std::to_string(n) + ", got " + std::to_string(X.rows()) + " x " +
               std::to_string(X.cols()) + " and " + std::to_string(Y.rows()) + " x " +
               std::to_string(n));
@@ -135,7 +139,7 @@ EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const
                                                   const EulerLagrangeGPOptions& options,
                                                   double sigma) {
   options.Validate();
-  CheckFitData(X, Y);
+  CheckFitData(X, Y, options);
   Require(sigma > 0.0 && std::isfinite(sigma), "sigma must be finite and > 0");
   const int n = static_cast<int>(Y.cols());
   const std::vector<int> rows = EvenlySpacedRows(X.rows(), options.hyperparameter_rows);
@@ -168,7 +172,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
                                           std::optional<EulerLagrangeGP>* gp) {
   const auto start = std::chrono::steady_clock::now();
   options.Validate();
-  CheckFitData(X, Y);
+  CheckFitData(X, Y, options);
   const int n = static_cast<int>(Y.cols());
   if (gp != nullptr) gp->reset();
   EulerLagrangeGPSummary summary;

@@ -55,7 +55,8 @@ void AddEffects(const FeatureMap* effects, const EulerLagrangeGPHyperparameters&
   }
 }
 
-// The Gram parts over X (m x 3N) against Z (p x 3N), (m N) x (p N), row index state * N + i:
+// The Gram parts over X (m x 3N, or 3N + 1 with the time) against Z (p x the same), (m N) x
+// (p N), row index state * N + i:
 // parts[k] for the kernel part `which[k]` at unit weight, and the friction part in *F (zero
 // when there is none). With symmetric (X = Z) only half the pairs are evaluated.
 void PartGrams(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperparameters& h,
@@ -73,7 +74,7 @@ void PartGrams(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperpara
       for (size_t k = 0; k < which.size(); ++k) {
         const int link = which[k] % n;
         if (link != computed) {
-          kernel.EvaluateLink(Xt.col(s), Zt.col(t), link, kin, pot);
+          kernel.EvaluateLink(Xt.col(s).head(3 * n), Zt.col(t).head(3 * n), link, kin, pot);
           computed = link;
         }
         const Matrix& B = which[k] < n ? kin : pot;
@@ -102,7 +103,7 @@ Matrix Covariance(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperp
   const Matrix Xt = X.transpose(), Zt = Z.transpose();
   for (Eigen::Index s = 0; s < m; ++s) {
     for (Eigen::Index t = symmetric ? s : 0; t < p; ++t) {
-      kernel.Evaluate(Xt.col(s), Zt.col(t), h.part_weights, block);
+      kernel.Evaluate(Xt.col(s).head(3 * n), Zt.col(t).head(3 * n), h.part_weights, block);
       if (h.friction()) {
         for (int i = 0; i < n; ++i) block(i, i) += FrictionCovariance(h, i, Xt(n + i, s), Zt(n + i, t));
       }
@@ -149,20 +150,27 @@ double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F,
   return value;
 }
 
-// The effects' map (null: none) fits the hyper-parameters' effect prior variances and the 3N
-// states.
-void CheckEffects(const EulerLagrangeGPHyperparameters& h, const FeatureMap* effects) {
+// The effects' map (null: none) fits the hyper-parameters' effect prior variances and takes
+// the 3N states, or the 3N states and the time. Returns the GP's input dimension.
+int CheckEffects(const EulerLagrangeGPHyperparameters& h, const FeatureMap* effects) {
+  const int n = h.num_joints();
   Require((effects != nullptr) == h.effects() &&
               (effects == nullptr || (effects->dim() == h.effect_prior_variance.size() &&
-                                      effects->input_dim() == 3 * h.num_joints())),
-          "the effects' map and prior variances do not fit each other or the 3N states");
+                                      (effects->input_dim() == 3 * n ||
+                                       effects->input_dim() == 3 * n + 1))),
+          "the effects' map and prior variances do not fit each other, or the map takes "
+          "neither the 3N states nor the 3N states and the time");
+  return effects != nullptr ? effects->input_dim() : 3 * n;
 }
 
-void CheckData(const ConstMatrixRef& X, const ConstMatrixRef& Y, int n) {
+// X: m rows of the 3N states (q, qd, qdd), and the time when input_dim is 3N + 1.
+void CheckData(const ConstMatrixRef& X, const ConstMatrixRef& Y, int n, int input_dim) {
   Require(Y.cols() == n, "expected " + std::to_string(n) + " torque columns, got " +
                              std::to_string(Y.cols()));
-  Require(X.cols() == 3 * n, "expected " + std::to_string(3 * n) + " state columns, got " +
-                                 std::to_string(X.cols()));
+  Require(X.cols() == input_dim,
+          "expected " + std::to_string(input_dim) +
+              (input_dim == 3 * n ? " state columns" : " columns (the states and the time)") +
+              ", got " + std::to_string(X.cols()));
   Require(X.rows() == Y.rows(), "states have " + std::to_string(X.rows()) + " rows, torques " +
                                     std::to_string(Y.rows()));
   Require(X.rows() > 0, "no rows");
@@ -207,17 +215,15 @@ EulerLagrangeGP::EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters,
                                  std::shared_ptr<const FeatureMap> effects)
     : hyper_((hyperparameters.Validate(), std::move(hyperparameters))),
       kernel_(hyper_.num_joints(), hyper_.sigma),
-      effects_(std::move(effects)) {
-  CheckEffects(hyper_, effects_.get());
-}
+      effects_(std::move(effects)),
+      input_dim_(CheckEffects(hyper_, effects_.get())) {}
 
 EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base,
                                              const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                              std::vector<int> parts, const FeatureMap* effects)
     : n_(base.num_joints()), parts_(std::move(parts)) {
   base.Validate();
-  CheckEffects(base, effects);
-  CheckData(X, Y, n_);
+  CheckData(X, Y, n_, CheckEffects(base, effects));
   std::vector<bool> searched(static_cast<size_t>(2 * n_), false);
   for (int p : parts_) {
     Require(p >= 0 && p < 2 * n_ && !searched[static_cast<size_t>(p)],
@@ -282,7 +288,7 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
 Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                   const ConstMatrixRef& inducing, int num_threads) {
   const int n = num_joints();
-  CheckData(X, Y, n);
+  CheckData(X, Y, n, input_dim_);
   Require(num_threads >= 1, "expected num_threads >= 1, got " + std::to_string(num_threads));
   const Vector& noise = hyper_.noise_std;
   if (inducing.size() == 0) {
@@ -306,8 +312,8 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     dtc_ = false;
     return Status::kOk;
   }
-  Require(inducing.cols() == 3 * n, "inducing states need " + std::to_string(3 * n) +
-                                        " columns, got " + std::to_string(inducing.cols()));
+  Require(inducing.cols() == input_dim_, "inducing states need " + std::to_string(input_dim_) +
+                                             " columns, got " + std::to_string(inducing.cols()));
   Require(AllFinite(inducing), "non-finite inducing state");
   // K_ZZ = L L^T (relative jitter 1e-8), V = L^-1 K_ZX S^-1/2, B = I + V V^T,
   // alpha = L^-T B^-1 V S^-1/2 y.
@@ -383,11 +389,11 @@ Status EulerLagrangeGP::Predict(const ConstMatrixRef& X, Matrix* mean,
                                 Matrix* latent_variance) const {
   if (!conditioned()) throw std::logic_error("EulerLagrangeGP::Predict: not conditioned");
   const int n = num_joints();
-  if (X.cols() != 3 * n || !AllFinite(X)) return Status::kInvalidInput;
+  if (X.cols() != input_dim_ || !AllFinite(X)) return Status::kInvalidInput;
   mean->resize(X.rows(), n);
   if (latent_variance != nullptr) latent_variance->resize(X.rows(), n);
   Workspace w = MakeWorkspace();
-  Vector x(3 * n), m(n), v(latent_variance != nullptr ? n : 0);
+  Vector x(input_dim_), m(n), v(latent_variance != nullptr ? n : 0);
   for (Eigen::Index s = 0; s < X.rows(); ++s) {
     x = X.row(s).transpose();
     const Status status = PredictOne(x, m, v, w);
@@ -410,7 +416,7 @@ Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
   if (!conditioned()) throw std::logic_error("EulerLagrangeGP::PredictOne: not conditioned");
   const int n = num_joints();
   const Eigen::Index p = states_.rows();
-  if (x.size() != 3 * n || mean.size() != n || !x.allFinite() ||
+  if (x.size() != input_dim_ || mean.size() != n || !x.allFinite() ||
       (latent_variance.size() != 0 && latent_variance.size() != n) || w.ks.rows() != n ||
       w.ks.cols() != p * n || w.v.rows() != p * n || w.v.cols() != n || w.block.rows() != n ||
       w.block.cols() != n || w.phi.size() != (effects_ ? effects_->dim() : 0) ||
@@ -418,7 +424,7 @@ Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
     return Status::kInvalidInput;
   }
   for (Eigen::Index t = 0; t < p; ++t) {
-    kernel_.Evaluate(x, states_t_.col(t), hyper_.part_weights, w.block);
+    kernel_.Evaluate(x.head(3 * n), states_t_.col(t).head(3 * n), hyper_.part_weights, w.block);
     if (hyper_.friction()) {
       for (int i = 0; i < n; ++i) {
         w.block(i, i) += FrictionCovariance(hyper_, i, x[n + i], states_t_(n + i, t));
@@ -437,7 +443,7 @@ Status EulerLagrangeGP::PredictOne(const ConstVectorRef& x, VectorRef mean,
   }
   mean.noalias() = w.ks * alpha_;
   if (latent_variance.size() == 0) return Status::kOk;
-  kernel_.Evaluate(x, x, hyper_.part_weights, w.block);
+  kernel_.Evaluate(x.head(3 * n), x.head(3 * n), hyper_.part_weights, w.block);
   if (hyper_.friction()) {
     for (int i = 0; i < n; ++i) w.block(i, i) += FrictionCovariance(hyper_, i, x[n + i], x[n + i]);
   }
@@ -538,11 +544,12 @@ EulerLagrangeJointFeatureMap::EulerLagrangeJointFeatureMap(const EulerLagrangeGP
       joint_(joint),
       hyper_(gp.hyperparameters()),
       kernel_(gp.kernel()),
-      effects_(gp.effects()) {
+      effects_(gp.effects()),
+      input_dim_(gp.input_dim()) {
   Require(joint >= 0 && joint < n_, "joint " + std::to_string(joint) + " out of range [0, " +
                                         std::to_string(n_) + ")");
-  Require(Z.rows() >= 1 && Z.cols() == 3 * n_ && Z.allFinite(),
-          "inducing states: expected p >= 1 finite rows of " + std::to_string(3 * n_) +
+  Require(Z.rows() >= 1 && Z.cols() == input_dim_ && Z.allFinite(),
+          "inducing states: expected p >= 1 finite rows of " + std::to_string(input_dim_) +
               " columns, got " + std::to_string(Z.rows()) + " x " + std::to_string(Z.cols()));
   Require(!effects_ || effects_->dim() <= kMaxJointMapEffectFeatures,
           "at most " + std::to_string(kMaxJointMapEffectFeatures) + " effect features, got " +
@@ -570,14 +577,14 @@ EulerLagrangeJointFeatureMap::EulerLagrangeJointFeatureMap(const EulerLagrangeGP
 void EulerLagrangeJointFeatureMap::Evaluate(const ConstVectorRef& x, VectorRef phi) const {
   using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxEulerLagrangeJoints,
                               kMaxEulerLagrangeJoints>;
-  Require(x.size() == 3 * n_ && phi.size() == dim(), "expected a state of " +
-                                                         std::to_string(3 * n_) + " and " +
-                                                         std::to_string(dim()) + " features");
+  Require(x.size() == input_dim_ && phi.size() == dim(),
+          "expected an input of " + std::to_string(input_dim_) + " and " +
+              std::to_string(dim()) + " features");
   const int n = n_, j = joint_;
   Block block(n, n);
   const Eigen::Index p = states_t_.cols();
   for (Eigen::Index t = 0; t < p; ++t) {
-    kernel_.Evaluate(x, states_t_.col(t), hyper_.part_weights, block);
+    kernel_.Evaluate(x.head(3 * n), states_t_.col(t).head(3 * n), hyper_.part_weights, block);
     for (int i = 0; i < n; ++i) phi[t * n + i] = block(j, i);
     if (hyper_.friction()) {
       phi[t * n + j] += FrictionCovariance(hyper_, j, x[n + j], states_t_(n + j, t));

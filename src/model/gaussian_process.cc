@@ -199,7 +199,7 @@ GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMa
 
 int GaussianProcess::input_dim() const {
   if (regressor_map_) return regressor_map_->input_dim();
-  if (euler_hyper_) return 3 * num_outputs_;
+  if (euler_hyper_) return euler_effects_ ? euler_effects_->input_dim() : 3 * num_outputs_;
   return map_ ? map_->input_dim() : kernel_->input_dim();
 }
 

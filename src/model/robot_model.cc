@@ -58,11 +58,6 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
     return;
   }
   if (spec_.base == BaseModel::kLagk) {
-    if (uses_time_) {
-      throw std::invalid_argument(
-          "model 'lagk' takes effects of the state but not of the time yet (got '" +
-          ToString(spec_.effects) + "'): add time effects to pol, lag or rbd");
-    }
     if (num_joints_ > kMaxEulerLagrangeJoints) {
       throw std::invalid_argument("model 'lagk' serves up to " +
                                   std::to_string(kMaxEulerLagrangeJoints) + " joints, got " +
@@ -73,7 +68,10 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
       ModelSpec effects_only = spec_;
       effects_only.friction = false;
       std::vector<std::string> names;
-      effect_map_ = ExtrasMap(effects_only, num_joints_, options_.friction_width, false, &names);
+      // With a time effect every effect takes the time as the last input (the kernel and its
+      // friction read the 3N states only).
+      effect_map_ =
+          ExtrasMap(effects_only, num_joints_, options_.friction_width, uses_time_, &names);
       Hyperparameters h = structgp::DefaultHyperparameters(*effect_map_, num_joints_);
       h.log_block_scale.setConstant(std::log(options_.broad_prior_std));
       effect_prior_variance_ = PriorVariance(*effect_map_, h);

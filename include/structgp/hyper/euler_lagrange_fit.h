@@ -28,8 +28,9 @@ struct EulerLagrangeGPOptions {
   /// joint's RMS velocity.
   bool friction = false;
   double coulomb_width = 0.01;
-  /// Effects (model/euler_lagrange_gp.h): their features of the 3N states and each feature's
-  /// prior variance (both empty: none); each joint's scale s_i is its RMS torque.
+  /// Effects (model/euler_lagrange_gp.h): their features of the 3N states, or of the states
+  /// and the time (X's last column then), and each feature's prior variance (both empty: none);
+  /// each joint's scale s_i is its RMS torque.
   std::shared_ptr<const FeatureMap> effects;
   Vector effect_prior_variance;
   /// Type-II maximum likelihood on this many evenly spaced rows (0 or more than m: all).

@@ -8,16 +8,19 @@
 /// joints' torques are derived from. No kinematic parameters. Optional semi-parametric friction
 /// per joint: bases qd_i / v_i, tanh(qd_i / width) and 1, independent, prior std s_i.
 ///
-/// Optional effects (feature/effects.h, as RobotModel builds them: features of the states shared
-/// by the joints, each joint with its own weights): the covariance of joints i and j gains
-/// delta_ij s_i^2 phi(x)^T diag(lambda) phi(x'), a broad fixed prior.
+/// Optional effects (feature/effects.h, as RobotModel builds them: features of the states, or of
+/// the states and the time, shared by the joints, each joint with its own weights): the
+/// covariance of joints i and j gains delta_ij s_i^2 phi(x)^T diag(lambda) phi(x'), a broad
+/// fixed prior. With effects of the time (drift) the inputs carry the time as a last column,
+/// which only the effects read.
 ///
 /// Hyper-parameters: sigma of the kernel's trigonometric factors, the 2N part weights, one noise
 /// std per joint (FitEulerLagrangeGP in hyper/euler_lagrange_fit.h chooses them). The posterior
 /// is exact, or through inducing states the deterministic training conditional (DTC):
 /// O(m N (p N)^2) time and O((p N)^2) memory instead of O((m N)^3) and O((m N)^2).
 ///
-/// Inputs x = (q, qd, qdd) as rows of X (m x 3N); torques Y (m x N).
+/// Inputs x = (q, qd, qdd) as rows of X (m x 3N), or (q, qd, qdd, t) (m x (3N + 1)) when the
+/// effects take the time; torques Y (m x N).
 
 #include <memory>
 #include <string>
@@ -107,8 +110,9 @@ class EulerLagrangeEvidence {
 
 class EulerLagrangeGP {
  public:
-  /// Throws std::invalid_argument (Validate; effects: a map of 3N inputs whose dimension is
-  /// the number of effect prior variances, null exactly when there are none).
+  /// Throws std::invalid_argument (Validate; effects: a map of 3N inputs, or of 3N + 1 with
+  /// the time last, whose dimension is the number of effect prior variances, null exactly when
+  /// there are none).
   explicit EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters,
                            std::shared_ptr<const FeatureMap> effects = nullptr);
 
@@ -116,11 +120,13 @@ class EulerLagrangeGP {
   const EulerLagrangeKernel& kernel() const { return kernel_; }
   const std::shared_ptr<const FeatureMap>& effects() const { return effects_; }
   int num_joints() const { return hyper_.num_joints(); }
+  /// 3N, or 3N + 1 when the effects take the time (its last column).
+  int input_dim() const { return input_dim_; }
 
   /// The posterior on (X, Y): exact when inducing is empty, else DTC through the inducing
-  /// states (p x 3N). kNotPositiveDefinite when a factorisation fails (the model is then
-  /// unchanged). Throws std::invalid_argument on bad sizes, non-finite data or
-  /// num_threads < 1.
+  /// states (p x input_dim()). kNotPositiveDefinite when a factorisation fails (the model is then
+  /// unchanged). X: m x input_dim(), inducing: p x input_dim(). Throws std::invalid_argument
+  /// on bad sizes, non-finite data or num_threads < 1.
   ///
   /// DTC takes the training states in blocks of kDtcBlockStates: each block's covariance with
   /// the inducing states is formed, solved against their factor and its terms added to the
@@ -165,7 +171,7 @@ class EulerLagrangeGP {
   /// Throws std::logic_error when not conditioned. Allocates.
   Workspace MakeWorkspace() const;
   /// The posterior mean (N) and, when latent_variance has N entries, the latent variance at one
-  /// state x (3N): allocation-free with a workspace of this posterior, and safe for concurrent
+  /// input x (input_dim()): allocation-free with a workspace of this posterior, and safe for concurrent
   /// calls with one workspace each. kInvalidInput on bad sizes, a non-finite state or a
   /// workspace of another posterior; throws std::logic_error when not conditioned.
   Status PredictOne(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
@@ -193,6 +199,7 @@ class EulerLagrangeGP {
   EulerLagrangeGPHyperparameters hyper_;
   EulerLagrangeKernel kernel_;
   std::shared_ptr<const FeatureMap> effects_;
+  int input_dim_;               // 3N, or 3N + 1 with the time
   Matrix effect_z_;             // effects: phi(z_t)^T diag(lambda), p x D
   Matrix states_;               // training states (exact) or inducing states (DTC)
   Matrix states_t_;             // states_ transposed: one contiguous column per state
@@ -217,12 +224,12 @@ class EulerLagrangeJointFeatureMap : public FeatureMap {
   /// Most effect features it evaluates without allocating (a stack buffer).
   static constexpr int kMaxJointMapEffectFeatures = 256;
 
-  /// gp: its hyper-parameters and effects are copied (it need not be conditioned). Z: p x 3N
-  /// inducing states; joint 0-based; at most kMaxJointMapEffectFeatures effect features. Throws std::invalid_argument on bad sizes or values,
+  /// gp: its hyper-parameters and effects are copied (it need not be conditioned). Z: p x
+  /// gp.input_dim() inducing states (with the time when the gp's effects take it); joint 0-based; at most kMaxJointMapEffectFeatures effect features. Throws std::invalid_argument on bad sizes or values,
   /// std::runtime_error when the inducing covariance cannot be factorised.
   EulerLagrangeJointFeatureMap(const EulerLagrangeGP& gp, const ConstMatrixRef& Z, int joint);
 
-  int input_dim() const override { return 3 * n_; }
+  int input_dim() const override { return input_dim_; }
   int dim() const override { return static_cast<int>(factor_.rows()); }
   /// Allocation-free (at most kMaxEulerLagrangeJoints joints).
   void Evaluate(const ConstVectorRef& x, VectorRef phi) const override;
@@ -235,7 +242,8 @@ class EulerLagrangeJointFeatureMap : public FeatureMap {
   EulerLagrangeGPHyperparameters hyper_;
   EulerLagrangeKernel kernel_;
   std::shared_ptr<const FeatureMap> effects_;
-  Matrix states_t_;   // 3N x p
+  int input_dim_;     // the gp's
+  Matrix states_t_;   // input_dim x p
   Matrix effect_z_;   // p x D: phi_e(z)^T diag(lambda)
   Matrix factor_;     // lower, (p N) x (p N)
 };

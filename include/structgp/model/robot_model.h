@@ -30,9 +30,9 @@
 /// (model/euler_lagrange_gp.h: a prior on each link's kinetic and potential energy, no
 /// kinematics, any N), with the semi-parametric friction of "+fri" in the kernel; it runs in
 /// GaussianProcess's kEulerLagrange form, exactly or through RobotModelOptions::batch.
-/// inducing_states covering the training states. Effects that do not use the time enter as
-/// features with the broad prior of the other models, shared by the joints (each joint's scale
-/// its RMS torque, fitted); it has no component split, no coefficients and no online update
+/// inducing_states covering the training states. Effects enter as features with the broad
+/// prior of the other models, shared by the joints (each joint's scale its RMS torque, fitted);
+/// with a time effect (drift) the inputs end with the time, which only the effects read; it has no component split, no coefficients and no online update
 /// (GaussianProcess::Add refuses).
 ///
 /// rbd+pol (rbd+rbf, rbd+rbfs, rbd+motor) is the base with the known chain's inverse dynamics as
@@ -197,8 +197,8 @@ class RobotModel {
   /// A workspace for the fitted model (allocates). Throws std::logic_error when not fitted.
   Workspace MakeWorkspace() const;
 
-  /// lagk with effects: their features of the 3N states and each feature's prior variance
-  /// (null and empty otherwise).
+  /// lagk with effects: their features of the inputs (the 3N states, and the time when
+  /// uses_time()) and each feature's prior variance (null and empty otherwise).
   const std::shared_ptr<const FeatureMap>& effect_map() const { return effect_map_; }
   const Vector& effect_prior_variance() const { return effect_prior_variance_; }
 
