@@ -9,7 +9,8 @@
 //                   [--injections=cogging,coulomb,offset,drift] [--sizes=1,3,10]
 //                   [--periods=0.2] [--joints=1] [--seeds=1] [--max-train=2500]
 //                   [--heldout-rows=1000] [--ml-max-rows=400] [--real-ml-max-rows=1000]
-//                   [--out=FILE.csv] [--findings-dir=DIR] [--quick] [--check]
+//                   [--rounds=1] [--out=FILE.csv] [--findings-dir=DIR] [--models-dir=DIR]
+//                   [--quick] [--check]
 //
 // Part A, simulated arms (sim::Puma560, sim::Panda). Three logs per case, all on the same
 // closed via-point path (sim::ViaPoints, continuous velocity, --vias via points in
@@ -72,14 +73,21 @@
 // Only the fields of Diagnosis that every version has (status, message, suggestions: effect,
 // joint, params, spec) are read by name; any other top-level field of its JSON (ToJson) is
 // listed in the "other findings" column, so that fields added later are shown, not lost.
-// --findings-dir writes the JSON of every diagnosis. --quick: a CI-size run (PUMA 560, none and
+// --rounds=K runs the loop as a user would, up to K diagnoses in part A: the model refitted with
+// the suggestions is diagnosed again on the same logs and its new suggestions added, until a
+// round suggests nothing new; the columns then count every round's suggestions, and "after" is
+// the last refit. --findings-dir writes the JSON of every diagnosis. --models-dir keeps the fitted models (a file
+// per model label and hash of its training data) and loads them instead of fitting again: a
+// rerun with a changed diagnosis skips the fits that did not change. --quick: a CI-size run (PUMA 560, none and
 // coulomb, short logs, rbd when --models is at its default; 300 rows of each UR10 part, one
 // cogging injection at 10x the noise). --check: exit 3 unless
 // every diagnosis ran (status ok) and every number is finite.
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -102,6 +110,7 @@
 #include "structgp/fit/fit_model.h"
 #include "structgp/internal/text.h"
 #include "structgp/io/csv.h"
+#include "structgp/io/model_file.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/model/model_spec.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
@@ -142,6 +151,7 @@ struct Flags {
   // Rows of the evidence search of kernel-form fits (the CLI's --ml-max-rows, default 1000):
   // O(m^3) per evaluation, and part A fits about 40 models.
   int ml_max_rows = 400;
+  int rounds = 1;
   // Part B.
   std::string data_dir = "../shared/data";
   std::vector<std::string> datasets{"ur10", "sarcos"};
@@ -244,10 +254,51 @@ struct Fit {
   double seconds = 0.0;
 };
 
+// --models-dir: fitted models are saved there and loaded instead of fitted again when the same
+// model is fitted on the same data with the same evidence rows (the file name holds the label
+// and a hash of those). Models with a URDF chain are always fitted.
+std::string g_models_dir;
+
+std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
+                   int max_evidence_rows) {
+  std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the bytes
+  auto mix = [&h](const void* data, std::size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ULL;
+  };
+  for (const Matrix* A : {&X, &Y}) {
+    const Eigen::Index rows = A->rows(), cols = A->cols();
+    mix(&rows, sizeof rows);
+    mix(&cols, sizeof cols);
+    mix(A->data(), sizeof(double) * static_cast<std::size_t>(A->size()));
+  }
+  mix(t.data(), sizeof(double) * static_cast<std::size_t>(t.size()));
+  mix(&max_evidence_rows, sizeof max_evidence_rows);
+  std::string label = ModelLabel(spec);
+  for (char& c : label) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-') c = '_';
+  }
+  return label + "_" + Format("%016llx", static_cast<unsigned long long>(h));
+}
+
 Fit FitSpec(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
             std::shared_ptr<const RigidBodyChain> chain, int max_evidence_rows) {
   Fit fit;
   const auto start = std::chrono::steady_clock::now();
+  const std::string cached =
+      g_models_dir.empty() || chain
+          ? std::string()
+          : g_models_dir + "/" + FitKey(spec, X, Y, t, max_evidence_rows) + ".json";
+  if (!cached.empty() && std::filesystem::exists(cached)) {
+    try {
+      fit.model = std::make_unique<RobotModel>(LoadModel(cached));
+      std::fprintf(stderr, "    fit %s: loaded %s\n", ModelLabel(spec).c_str(), cached.c_str());
+      fit.seconds = Seconds(start);
+      return fit;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "    %s: %s (fitting again)\n", cached.c_str(), e.what());
+    }
+  }
   FitOptions options;
   options.max_evidence_rows = max_evidence_rows;
   options.model.rigid_body = std::move(chain);
@@ -261,6 +312,10 @@ Fit FitSpec(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vecto
       fit.error = "fit failed: " + fitted.summary.message;
     } else {
       fit.model = std::make_unique<RobotModel>(std::move(fitted.model));
+      if (!cached.empty()) {
+        std::filesystem::create_directories(g_models_dir);
+        SaveModel(cached, *fit.model);
+      }
     }
   } catch (const std::exception& e) {
     fit.error = std::string("fit failed: ") + e.what();
@@ -441,6 +496,7 @@ SimLogs MakeSimLogs(const sim::Robot& arm, const SimCase& c, const Flags& f, std
 struct SimRow {
   std::string robot, kase, model, suggestions, expected, found, other, note;
   int false_alarms = 0;
+  int rounds = 1;  // diagnoses run (--rounds)
   bool diagnosed = false;
   Vector before, after, truth;  // RMS / noise per joint on the evaluation log
   double pooled_before = NAN, pooled_after = NAN, pooled_truth = NAN;
@@ -504,27 +560,100 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   }
   double diag_seconds = 0;
   const bool with_training = f.with_training;
-  const Diagnosis d = RunDiagnosis(*base.model, logs.diag.X, logs.diag.Y, logs.diag.t,
-                                   &diag_seconds, with_training ? &logs.train.X : nullptr,
-                                   &logs.train.Y, &logs.train.t);
-  std::fprintf(stderr, "%s %s %s: fit %.0f s, diagnosis %.0f s: %s\n", robot_name.c_str(),
-               case_name.c_str(), model_name.c_str(), base.seconds, diag_seconds,
-               SuggestionList(d).c_str());
+  auto diagnose = [&](const RobotModel& model, const std::string& name) {
+    const Diagnosis d = RunDiagnosis(model, logs.diag.X, logs.diag.Y, logs.diag.t, &diag_seconds,
+                                     with_training ? &logs.train.X : nullptr, &logs.train.Y,
+                                     &logs.train.t);
+    std::fprintf(stderr, "%s %s %s: diagnosis %.0f s: %s\n", robot_name.c_str(),
+                 case_name.c_str(), name.c_str(), diag_seconds, SuggestionList(d).c_str());
+    return d;
+  };
+  std::fprintf(stderr, "%s %s %s: fit %.0f s\n", robot_name.c_str(), case_name.c_str(),
+               model_name.c_str(), base.seconds);
+  const Diagnosis d = diagnose(*base.model, model_name);
   WriteFindings(f, "sim_" + robot_name + "_" + case_name + "_" + model_name, d);
   row.diagnosed = d.status == DiagnosisStatus::kOk;
   if (!row.diagnosed) row.note = std::string(ToString(d.status)) + ": " + d.message;
   row.suggestions = SuggestionList(d);
   row.other = OtherFindings(d);
+  row.before = ColumnRms(PredictOn(*base.model, logs.eval.X, logs.eval.t), logs.eval.Y)
+                   .cwiseQuotient(noise);
+  // Refit with the suggestions (their spec text, as a user would add it) and with the truth;
+  // a model with the same text as one already fitted (the suggestions are the true effects)
+  // is not fitted again.
+  struct Refit {
+    Vector rms;  // RMS / noise per joint on the evaluation log
+    std::string error;
+    std::shared_ptr<const RobotModel> model;
+  };
+  std::map<std::string, Refit> fitted;  // by label
+  fitted[ModelLabel(spec)] = {row.before, "", nullptr};
+  auto evaluate = [&](const ModelSpec& s) {
+    const std::string label = ModelLabel(s);
+    auto it = fitted.find(label);
+    if (it != fitted.end()) return it->second;
+    Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows);
+    Refit result{Vector(), fit.error, std::move(fit.model)};
+    if (result.model) {
+      result.rms = ColumnRms(PredictOn(*result.model, logs.eval.X, logs.eval.t), logs.eval.Y)
+                       .cwiseQuotient(noise);
+    }
+    std::fprintf(stderr, "  %s %s: refit %s in %.0f s\n", robot_name.c_str(), case_name.c_str(),
+                 label.c_str(), fit.seconds);
+    return fitted[label] = result;
+  };
+  // The loop (--rounds): the model refitted with the suggestions is diagnosed again and its
+  // new suggestions added, until a round suggests nothing new.
+  std::vector<Suggestion> suggestions = d.suggestions;
+  ModelSpec suggested = spec;
+  std::string failures;
+  auto add = [&](const std::vector<Suggestion>& list) {
+    int added = 0;
+    try {
+      for (const Suggestion& s : list) {
+        for (const EffectSpec& e : ParseEffectList(s.spec)) {
+          suggested.effects.push_back(e);
+          ++added;
+        }
+      }
+    } catch (const std::invalid_argument& e) {
+      failures += std::string("a suggestion does not parse: ") + e.what() + "; ";
+      return -1;
+    }
+    return added;
+  };
+  int added = add(d.suggestions);
+  if (added == 0) row.after = row.before;
+  for (int round = 1; added > 0; ++round) {
+    const Refit after = evaluate(suggested);
+    row.after = after.rms;
+    if (!after.error.empty()) failures += "with the suggestions: " + after.error + "; ";
+    if (round >= f.rounds || !after.model) break;
+    const std::string name = ModelLabel(suggested);
+    const Diagnosis next = diagnose(*after.model, name);
+    WriteFindings(f, Format("sim_%s_%s_%s_round%d", robot_name.c_str(), case_name.c_str(),
+                            model_name.c_str(), round + 1),
+                  next);
+    if (next.status != DiagnosisStatus::kOk) {
+      failures += Format("round %d: %s: %s; ", round + 1, ToString(next.status),
+                         next.message.c_str());
+      break;
+    }
+    row.rounds = round + 1;
+    row.suggestions += Format("; round %d: ", round + 1) + SuggestionList(next);
+    suggestions.insert(suggestions.end(), next.suggestions.begin(), next.suggestions.end());
+    added = add(next.suggestions);
+  }
   int found = 0;
   for (const Expected& e : logs.expected) {
-    for (const Suggestion& s : d.suggestions) {
+    for (const Suggestion& s : suggestions) {
       if (Matches(s, e)) {
         ++found;
         break;
       }
     }
   }
-  for (const Suggestion& s : d.suggestions) {
+  for (const Suggestion& s : suggestions) {
     bool expected = false;
     for (const Expected& e : logs.expected) expected = expected || Matches(s, e);
     row.false_alarms += expected ? 0 : 1;
@@ -536,48 +665,11 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   } else {
     row.found = Format("%d/%d", found, static_cast<int>(logs.expected.size()));
   }
-  row.before = ColumnRms(PredictOn(*base.model, logs.eval.X, logs.eval.t), logs.eval.Y)
-                   .cwiseQuotient(noise);
-  // Refit with the suggestions (their spec text, as a user would add it) and with the truth;
-  // a model with the same text as one already fitted (the suggestions are the true effects)
-  // is not fitted again.
-  std::map<std::string, std::pair<Vector, std::string>> fitted;  // label -> RMS / noise, error
-  fitted[ModelLabel(spec)] = {row.before, ""};
-  auto evaluate = [&](const ModelSpec& s) {
-    const std::string label = ModelLabel(s);
-    auto it = fitted.find(label);
-    if (it != fitted.end()) return it->second;
-    const Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows);
-    std::pair<Vector, std::string> result{Vector(), fit.error};
-    if (fit.model) {
-      result.first = ColumnRms(PredictOn(*fit.model, logs.eval.X, logs.eval.t), logs.eval.Y)
-                         .cwiseQuotient(noise);
-    }
-    std::fprintf(stderr, "  %s %s: refit %s in %.0f s\n", robot_name.c_str(), case_name.c_str(),
-                 label.c_str(), fit.seconds);
-    return fitted[label] = result;
-  };
-  ModelSpec suggested = spec;
-  std::string failures;
-  bool parsed = true;
-  try {
-    for (const Suggestion& s : d.suggestions) {
-      for (const EffectSpec& e : ParseEffectList(s.spec)) suggested.effects.push_back(e);
-    }
-  } catch (const std::invalid_argument& e) {
-    failures += std::string("a suggestion does not parse: ") + e.what() + "; ";
-    parsed = false;
-  }
-  if (parsed) {
-    const auto after = evaluate(suggested);
-    row.after = after.first;
-    if (!after.second.empty()) failures += "with the suggestions: " + after.second + "; ";
-  }
   ModelSpec true_spec = spec;
   for (const EffectSpec& e : logs.truth) true_spec.effects.push_back(e);
-  const auto truth = evaluate(true_spec);
-  row.truth = truth.first;
-  if (!truth.second.empty()) failures += "with the true effects: " + truth.second + "; ";
+  const Refit truth = evaluate(true_spec);
+  row.truth = truth.rms;
+  if (!truth.error.empty()) failures += "with the true effects: " + truth.error + "; ";
   row.pooled_before = Pooled(row.before);
   row.pooled_after = Pooled(row.after);
   row.pooled_truth = Pooled(row.truth);
@@ -986,6 +1078,9 @@ int Run(const Flags& flags, int argc, char** argv) {
       throw std::invalid_argument("--parts: unknown part '" + p + "' (expected sim, real)");
     }
   }
+  if (f.rounds < 1) {
+    throw std::invalid_argument("--rounds: expected at least 1, got " + std::to_string(f.rounds));
+  }
   // Names are checked before anything runs.
   for (const std::string& c : f.cases) MakeSimCase(c, 7, 1);
   for (const std::string& r : f.robots) MakeRobot(r);
@@ -1089,6 +1184,12 @@ int main(int argc, char** argv) {
       ->check(AtLeast(0));
   AddFlag(&app, "--out", &f.out, "CSV file of every row");
   AddFlag(&app, "--findings-dir", &f.findings_dir, "write every diagnosis's JSON here");
+  AddFlag(&app, "--rounds", &f.rounds,
+          "rounds of the loop in part A: the model refitted with the suggestions is diagnosed "
+          "again and its new suggestions added (1: one diagnosis)");
+  AddFlag(&app, "--models-dir", &structgp::g_models_dir,
+          "save each fitted model here, and load it instead of fitting the same model on the "
+          "same data again (not models with a URDF)");
   app.add_flag("--with-training,!--log-only", f.with_training,
                "give the diagnosis the model's training data too (the default; --log-only: the "
                "diagnosed log alone)");
