@@ -65,6 +65,7 @@
 #include "structgp/fit/fit_model.h"
 #include "structgp/diagnose/autocorrelation.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_loop.h"
 #include "structgp/diagnose/diagnosis_report.h"
 
 // Online learning next to a control loop.
