@@ -471,6 +471,42 @@ std::vector<double> DistanceToTraining(const std::map<std::string, std::vector<d
   return distance;
 }
 
+// The diagnosis loop from the CLI: --rounds with --train and --out refits the model with the
+// suggestions and writes it; the JSON holds every round; the improved model predicts the fast
+// log better; --rounds without --train and --out is refused.
+TEST(CliDiagnose, RoundsRefitTheModelAndWriteIt) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);
+  const std::string train = demo + "/train.csv", log = demo + "/test.csv";
+  const std::string before = demo + "/model_before.json", improved = dir.File("improved.json");
+  const std::string loop = dir.File("loop.json");
+  Result r = RunCli(dir, {"diagnose", "--model", before, "--data", log, "--train", train,
+                          "--rounds", "3", "--out", improved, "--json", loop});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "round 1: pol: add coulomb@2")) << r.out;
+  EXPECT_TRUE(Contains(r.out, "stopped: ")) << r.out;
+  const Json j = Json::parse(ReadFile(loop));
+  ASSERT_GE(j["rounds"].size(), 2u) << j.dump(2);
+  EXPECT_EQ(j["rounds"][0]["findings"]["suggestions"][0]["spec"], "coulomb@2");
+  const Json m = Json::parse(ReadFile(improved));
+  EXPECT_EQ(j["model"], m["model"].get<std::string>() + " + " + m["effects"].get<std::string>());
+  auto pooled_rms = [&](const std::string& model) {
+    const Result e = RunCli(dir, {"evaluate", "--model", model, "--data", log});
+    EXPECT_EQ(e.code, 0) << e.err;
+    const size_t at = e.out.find("  all ");
+    return at == std::string::npos ? -1.0 : std::stod(e.out.substr(at + 6));
+  };
+  const double rms_before = pooled_rms(before), rms_after = pooled_rms(improved);
+  EXPECT_GT(rms_after, 0.0);
+  EXPECT_LT(rms_after, 0.5 * rms_before);
+  r = RunCli(dir, {"diagnose", "--model", before, "--data", log, "--rounds", "2", "--json",
+                   dir.File("x.json")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Contains(r.err, "--rounds and --out go together")) << r.err;
+  EXPECT_FALSE(fs::exists(dir.File("x.json")));
+}
+
 TEST(CliDiagnose, TrainWritesTheCoverageVerdictAndTheDistancesPerJoint) {
   TempDir dir;
   const std::string demo = dir.File("demo");

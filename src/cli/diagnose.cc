@@ -1,10 +1,12 @@
 // structgp diagnose: where a model fails on a data file and which physical effect it misses.
 
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "commands.h"
 #include "common.h"
+#include "structgp/diagnose/diagnosis_loop.h"
 #include "structgp/io/data_error.h"
 #include "structgp/io/model_file.h"
 #include "structgp/report/report.h"
@@ -61,6 +63,15 @@ class DiagnoseCommand : public Command {
                     "the training data and --data together (a sharper test: a model refitted on "
                     "one log alone can bend along it), and the findings say how far --data is "
                     "from the training states");
+    cmd->add_option("--rounds", rounds_,
+                    "Run the diagnosis loop (with --train and --out): add the suggestions, "
+                    "refit on the training data with the fit's defaults, diagnose again, up "
+                    "to this many diagnoses; --json then holds every round")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    cmd->add_option("--out", out_,
+                    "With --rounds: the model with every added effect, refitted (the model as "
+                    "given when nothing is added)");
     cmd->add_option("--nystrom", options_.nystrom_features,
                     "Function-space models (rbf, rbfs, pol from 4 joints): Nystrom features of "
                     "the model's kernel the candidates are scored against")
@@ -75,7 +86,9 @@ class DiagnoseCommand : public Command {
         "did not cover (docs/diagnosis.md).\n"
         "Example:\n"
         "  structgp diagnose --model model.json --data test.csv --json findings.json "
-        "--report report.html");
+        "--report report.html\n"
+        "  structgp diagnose --model model.json --data test.csv --train train.csv --rounds 3 "
+        "--out improved.json --json loop.json");
     AddLoadThreadsFlag(cmd, &load_);
     return cmd;
   }
@@ -83,6 +96,12 @@ class DiagnoseCommand : public Command {
   int Run() override {
     CheckOutputPath("--json", json_);
     if (!report_.empty()) CheckOutputPath("--report", report_);
+    const bool loop = rounds_ > 1 || !out_.empty();
+    if (loop && (train_.empty() || out_.empty())) {
+      throw UsageError("--rounds and --out go together, with --train: the loop refits the "
+                       "model on the training data and writes it to --out");
+    }
+    if (loop) CheckOutputPath("--out", out_);
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     const RobotModel model = LoadModel(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
@@ -104,6 +123,7 @@ class DiagnoseCommand : public Command {
         throw DataError(e.file(), e.line(), e.column(), "--train: " + e.message());
       }
     }
+    if (loop) return RunLoop(model, data, text_out);
     Diagnosis diagnosis;
     try {
       diagnosis = Diagnose(model, X, data.Y, data.t, options_);
@@ -136,6 +156,56 @@ class DiagnoseCommand : public Command {
   }
 
  private:
+  // --rounds / --out: RunDiagnosisLoop on --data with the --train data, the fit's defaults.
+  int RunLoop(const RobotModel& model, const RobotData& data, std::FILE* text_out) {
+    const RobotData train = ReadData(train_, model.num_joints());
+    DiagnosisLoopOptions loop;
+    loop.max_rounds = rounds_;
+    loop.diagnosis = options_;
+    loop.diagnosis.training_inputs.resize(0, 0);
+    loop.diagnosis.training_targets.resize(0, 0);
+    loop.diagnosis.training_times.resize(0);
+    std::optional<RobotModel> improved;
+    DiagnosisLoopSummary summary;
+    try {
+      summary = RunDiagnosisLoop(loop, model, train.X, train.Y, train.t, data.X, data.Y, data.t,
+                                 &improved);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(data_ + " with --train " + train_ + ": " + e.what());
+    }
+    if (summary.termination == DiagnosisLoopTermination::kDiagnosisFailed) {
+      throw NumericalError("the diagnosis failed on " + data_ + ": " + summary.message);
+    }
+    const RobotModel& result = improved ? *improved : model;
+    std::vector<OutputFile> outputs = {{"--json", json_, ToJson(summary)},
+                                       {"--out", out_, ModelFileText(result)}};
+    const Diagnosis& first = summary.rounds.front().diagnosis;
+    if (!report_.empty()) {
+      report::ReportData r;
+      try {
+        r = report::DiagnosisReportData(model, data, first);
+      } catch (const std::runtime_error& e) {
+        throw NumericalError(std::string("prediction failed: ") + e.what());
+      }
+      r.notes.push_back("model file: " + model_ + " (the report shows round 1 of the loop)");
+      outputs.push_back({"--report", report_, report::RenderHtml(r)});
+    }
+    std::fprintf(text_out, "diagnosis loop of %s (%s) on %s (%d samples), refitted on %s\n",
+                 ModelLabel(model.spec()).c_str(), model_.c_str(), data_.c_str(), data.size(),
+                 train_.c_str());
+    std::fputs(DiagnosisSummary(first, model.spec(), loop.diagnosis).c_str(), text_out);
+    std::fputs(summary.BriefReport().c_str(), text_out);
+    if (!improved) std::fputs("nothing added: --out holds the model as given\n", text_out);
+    WriteOutputs(outputs);
+    PrintWritten(text_out, outputs);
+    if (summary.termination == DiagnosisLoopTermination::kRefitFailed) {
+      throw NumericalError(summary.message + " (--out holds the last usable model)");
+    }
+    return kExitOk;
+  }
+
+  int rounds_ = 1;
+  std::string out_;
   std::string model_, data_, json_, report_, train_;
   LoadOptions load_;
   DiagnosisOptions options_;
