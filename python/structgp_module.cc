@@ -24,6 +24,7 @@
 
 #include "structgp/core/version.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/diagnose/diagnosis_loop.h"
 #include "structgp/diagnose/diagnosis_report.h"
 #include "structgp/feature/effects.h"
 #include "structgp/fit/fit_model.h"
@@ -669,6 +670,47 @@ void BindDiagnosis(py::module_& m) {
       "candidates are scored on it and the data together, and the findings say how far the data "
       "are from the training states. report=PATH also writes the HTML report. "
       "Raises ValueError for bad input, structgp.Error when the diagnosis fails.");
+
+  m.def(
+      "diagnose_loop",
+      [](const py::object& model_object, const py::object& X, const py::object& Y,
+         const py::object& t, const py::object& train, int rounds) {
+        const Model& model = model_object.cast<const Model&>();
+        const std::shared_ptr<const RobotModel> held = model.shared("diagnose_loop");
+        const Matrix states = AsMatrix(X, "X"), torques = AsMatrix(Y, "Y");
+        const Vector times = AsVector(t, "t");
+        const py::tuple parts = train.cast<py::tuple>();
+        if (parts.size() < 2 || parts.size() > 3) {
+          throw std::invalid_argument("train: expected (X, Y) or (X, Y, t), got a tuple of " +
+                                      std::to_string(parts.size()));
+        }
+        const Matrix train_states = AsMatrix(parts[0], "train X");
+        const Matrix train_torques = AsMatrix(parts[1], "train Y");
+        const Vector train_times = parts.size() == 3 ? AsVector(parts[2], "train t") : Vector();
+        DiagnosisLoopOptions options;
+        options.max_rounds = rounds;
+        std::optional<RobotModel> improved;
+        DiagnosisLoopSummary summary;
+        {
+          py::gil_scoped_release release;
+          summary = RunDiagnosisLoop(options, *held, train_states, train_torques, train_times,
+                                     states, torques, times, &improved);
+        }
+        if (summary.termination == DiagnosisLoopTermination::kDiagnosisFailed) {
+          throw NumericalError("the diagnosis failed: " + summary.message);
+        }
+        py::object result = improved ? py::cast(Model(std::move(*improved))) : model_object;
+        return py::make_tuple(result, Json(ToJson(summary)));
+      },
+      py::arg("model"), py::arg("X"), py::arg("Y"), py::arg("t") = py::none(), py::kw_only(),
+      py::arg("train"), py::arg("rounds") = DiagnosisLoopOptions().max_rounds,
+      "The diagnosis loop, as `structgp diagnose --rounds`: diagnoses the model on X, Y (and t) "
+      "with its training data train=(X, Y[, t]), adds every suggestion, refits on the training "
+      "data with the fit's defaults and diagnoses again, up to `rounds` diagnoses or until one "
+      "suggests nothing. Returns (model, loop): the last refitted Model (the given one when "
+      "nothing was added) and the loop as a dict (termination, model, rounds with each one's "
+      "added effects, refit and findings). Raises ValueError for bad input, structgp.Error when "
+      "a diagnosis fails.");
 }
 
 // ---- online learner --------------------------------------------------------------------------

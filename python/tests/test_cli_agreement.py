@@ -101,3 +101,26 @@ def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
         [(r["spec"], r["refused_by"], r["reason"]) for r in expected["refused"]]
     assert "missing Coulomb friction" in str(diagnosis)
     assert structgp.parse_model(diagnosis.suggested_model) == "pol + coulomb@2:width=0.01"
+
+
+def test_the_diagnosis_loop_is_the_programs(cli, demo, tmp_path):
+    """diagnose_loop and `structgp diagnose --rounds`: the same rounds, and the same improved
+    model (its predictions equal to the digit)."""
+    loop_json, improved = tmp_path / "loop.json", tmp_path / "improved.json"
+    run(cli, "diagnose", "--model", demo / "model_before.json", "--data", demo / "test.csv",
+        "--train", demo / "train.csv", "--rounds", 3, "--out", improved, "--json", loop_json)
+    expected = json.loads(loop_json.read_text())
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    log = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model.load(str(demo / "model_before.json"))
+    better, loop = structgp.diagnose_loop(model, log.X, log.Y, log.t,
+                                          train=(train.X, train.Y, train.t), rounds=3)
+    assert loop["termination"] == expected["termination"]
+    assert [r["added"] for r in loop["rounds"]] == [r["added"] for r in expected["rounds"]]
+    assert loop["rounds"][0]["added"] == "coulomb@2"
+    assert loop["model"] == expected["model"]
+    program = structgp.Model.load(str(improved))
+    assert np.array_equal(better.predict(log.X), program.predict(log.X))
+    assert not np.array_equal(better.predict(log.X), model.predict(log.X))
+    with pytest.raises(ValueError):
+        structgp.diagnose_loop(model, log.X, log.Y, log.t, train=(train.X,), rounds=3)
