@@ -138,14 +138,7 @@ class DiagnoseCommand : public Command {
     }
     std::vector<OutputFile> outputs = {{"--json", json_, ToJson(diagnosis)}};
     if (!report_.empty()) {
-      report::ReportData r;
-      try {
-        r = report::DiagnosisReportData(model, data, diagnosis);
-      } catch (const std::runtime_error& e) {
-        throw NumericalError(std::string("prediction failed: ") + e.what());
-      }
-      r.notes.push_back("model file: " + model_);
-      outputs.push_back({"--report", report_, report::RenderHtml(r)});
+      outputs.push_back({"--report", report_, ReportHtml(model, data, diagnosis, "")});
     }
     std::fprintf(text_out, "diagnosis of %s (%s) on %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());
@@ -156,6 +149,19 @@ class DiagnoseCommand : public Command {
   }
 
  private:
+  // The HTML report of a diagnosis of the model on the data; `note` follows the model file.
+  std::string ReportHtml(const RobotModel& model, const RobotData& data,
+                         const Diagnosis& diagnosis, const std::string& note) const {
+    report::ReportData r;
+    try {
+      r = report::DiagnosisReportData(model, data, diagnosis);
+    } catch (const std::runtime_error& e) {
+      throw NumericalError(std::string("prediction failed: ") + e.what());
+    }
+    r.notes.push_back("model file: " + model_ + note);
+    return report::RenderHtml(r);
+  }
+
   // --rounds / --out: RunDiagnosisLoop on --data with the --train data, the fit's defaults.
   int RunLoop(const RobotModel& model, const RobotData& data, std::FILE* text_out) {
     const RobotData train = ReadData(train_, model.num_joints());
@@ -181,14 +187,8 @@ class DiagnoseCommand : public Command {
                                        {"--out", out_, ModelFileText(result)}};
     const Diagnosis& first = summary.rounds.front().diagnosis;
     if (!report_.empty()) {
-      report::ReportData r;
-      try {
-        r = report::DiagnosisReportData(model, data, first);
-      } catch (const std::runtime_error& e) {
-        throw NumericalError(std::string("prediction failed: ") + e.what());
-      }
-      r.notes.push_back("model file: " + model_ + " (the report shows round 1 of the loop)");
-      outputs.push_back({"--report", report_, report::RenderHtml(r)});
+      outputs.push_back({"--report", report_,
+                         ReportHtml(model, data, first, " (the report shows round 1 of the loop)")});
     }
     std::fprintf(text_out, "diagnosis loop of %s (%s) on %s (%d samples), refitted on %s\n",
                  ModelLabel(model.spec()).c_str(), model_.c_str(), data_.c_str(), data.size(),
