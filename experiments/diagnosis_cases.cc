@@ -255,8 +255,8 @@ struct Fit {
 };
 
 // --models-dir: fitted models are saved there and loaded instead of fitted again when the same
-// model is fitted on the same data with the same evidence rows (the file name holds the label
-// and a hash of those). Models with a URDF chain are always fitted.
+// model is fitted on the same data with the same evidence rows (the file name holds the label,
+// cut to 60 characters, and a hash of the whole label and those). Models with a URDF chain are always fitted.
 std::string g_models_dir;
 
 std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
@@ -275,6 +275,8 @@ std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, cons
   mix(t.data(), sizeof(double) * static_cast<std::size_t>(t.size()));
   mix(&max_evidence_rows, sizeof max_evidence_rows);
   std::string label = ModelLabel(spec);
+  mix(label.data(), label.size());
+  if (label.size() > 60) label.resize(60);  // the hash holds the whole label
   for (char& c : label) {
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-') c = '_';
   }
