@@ -498,7 +498,6 @@ SimLogs MakeSimLogs(const sim::Robot& arm, const SimCase& c, const Flags& f, std
 struct SimRow {
   std::string robot, kase, model, suggestions, expected, found, other, note;
   int false_alarms = 0;
-  int rounds = 1;  // diagnoses run (--rounds)
   bool diagnosed = false;
   Vector before, after, truth;  // RMS / noise per joint on the evaluation log
   double pooled_before = NAN, pooled_after = NAN, pooled_truth = NAN;
@@ -641,7 +640,6 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
                          next.message.c_str());
       break;
     }
-    row.rounds = round + 1;
     row.suggestions += Format("; round %d: ", round + 1) + SuggestionList(next);
     suggestions.insert(suggestions.end(), next.suggestions.begin(), next.suggestions.end());
     added = add(next.suggestions);

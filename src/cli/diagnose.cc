@@ -105,25 +105,28 @@ class DiagnoseCommand : public Command {
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     const RobotModel model = LoadModel(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
-    const Matrix X = ModelInputs(model, data);
+    const Matrix X = ModelInputs(model, data);  // also refuses a log without a time it needs
+    RobotData train;
     if (!train_.empty()) {
       // Problems of the training file name it, and say it is the --train file.
       try {
-        const RobotData train = ReadData(train_, model.num_joints());
+        train = ReadData(train_, model.num_joints());
         if (data.has_time() && !train.has_time()) {
           throw DataError(train_, 1, 0,
                           "no 't' column, but --data " + data_ +
                               " has one: the training data need their times too (they are "
                               "scored with the log as separate trajectories)");
         }
-        options_.training_inputs = ModelInputs(model, train);
-        options_.training_targets = train.Y;
-        options_.training_times = train.t;
+        if (!loop) {  // the loop sets them from the training data itself
+          options_.training_inputs = ModelInputs(model, train);
+          options_.training_targets = train.Y;
+          options_.training_times = train.t;
+        }
       } catch (const DataError& e) {
         throw DataError(e.file(), e.line(), e.column(), "--train: " + e.message());
       }
     }
-    if (loop) return RunLoop(model, data, text_out);
+    if (loop) return RunLoop(model, data, train, text_out);
     Diagnosis diagnosis;
     try {
       diagnosis = Diagnose(model, X, data.Y, data.t, options_);
@@ -163,14 +166,11 @@ class DiagnoseCommand : public Command {
   }
 
   // --rounds / --out: RunDiagnosisLoop on --data with the --train data, the fit's defaults.
-  int RunLoop(const RobotModel& model, const RobotData& data, std::FILE* text_out) {
-    const RobotData train = ReadData(train_, model.num_joints());
+  int RunLoop(const RobotModel& model, const RobotData& data, const RobotData& train,
+              std::FILE* text_out) {
     DiagnosisLoopOptions loop;
     loop.max_rounds = rounds_;
     loop.diagnosis = options_;
-    loop.diagnosis.training_inputs.resize(0, 0);
-    loop.diagnosis.training_targets.resize(0, 0);
-    loop.diagnosis.training_times.resize(0);
     std::optional<RobotModel> improved;
     DiagnosisLoopSummary summary;
     try {
