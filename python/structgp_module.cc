@@ -102,6 +102,20 @@ py::object TimesOrNone(const Vector& t) {
 
 py::object Json(const std::string& text) { return py::module_::import("json").attr("loads")(text); }
 
+// A model's training data given as train=(X, Y) or (X, Y, t).
+RobotData TrainingData(const py::object& train) {
+  const py::tuple parts = train.cast<py::tuple>();
+  if (parts.size() < 2 || parts.size() > 3) {
+    throw std::invalid_argument("train: expected (X, Y) or (X, Y, t), got a tuple of " +
+                                std::to_string(parts.size()));
+  }
+  RobotData data;
+  data.X = AsMatrix(parts[0], "train X");
+  data.Y = AsMatrix(parts[1], "train Y");
+  if (parts.size() == 3) data.t = AsVector(parts[2], "train t");
+  return data;
+}
+
 // ---- robot data ------------------------------------------------------------------------------
 
 // read_robot_csv and the simulator give RobotData; Python sees arrays and metadata.
@@ -623,15 +637,7 @@ void BindDiagnosis(py::module_& m) {
         result.options.candidates = candidates;
         result.options.significance = significance;
         if (!train.is_none()) {
-          const py::tuple parts = train.cast<py::tuple>();
-          if (parts.size() < 2 || parts.size() > 3) {
-            throw std::invalid_argument("train: expected (X, Y) or (X, Y, t), got a tuple of " +
-                                        std::to_string(parts.size()));
-          }
-          RobotData train_data;
-          train_data.X = AsMatrix(parts[0], "train X");
-          train_data.Y = AsMatrix(parts[1], "train Y");
-          if (parts.size() == 3) train_data.t = AsVector(parts[2], "train t");
+          const RobotData train_data = TrainingData(train);
           result.options.training_inputs = ModelInputs(fitted, train_data.X, train_data.t);
           result.options.training_targets = train_data.Y;
           result.options.training_times = train_data.t;
@@ -679,22 +685,15 @@ void BindDiagnosis(py::module_& m) {
         const std::shared_ptr<const RobotModel> held = model.shared("diagnose_loop");
         const Matrix states = AsMatrix(X, "X"), torques = AsMatrix(Y, "Y");
         const Vector times = AsVector(t, "t");
-        const py::tuple parts = train.cast<py::tuple>();
-        if (parts.size() < 2 || parts.size() > 3) {
-          throw std::invalid_argument("train: expected (X, Y) or (X, Y, t), got a tuple of " +
-                                      std::to_string(parts.size()));
-        }
-        const Matrix train_states = AsMatrix(parts[0], "train X");
-        const Matrix train_torques = AsMatrix(parts[1], "train Y");
-        const Vector train_times = parts.size() == 3 ? AsVector(parts[2], "train t") : Vector();
+        const RobotData training = TrainingData(train);
         DiagnosisLoopOptions options;
         options.max_rounds = rounds;
         std::optional<RobotModel> improved;
         DiagnosisLoopSummary summary;
         {
           py::gil_scoped_release release;
-          summary = RunDiagnosisLoop(options, *held, train_states, train_torques, train_times,
-                                     states, torques, times, &improved);
+          summary = RunDiagnosisLoop(options, *held, training.X, training.Y, training.t, states,
+                                     torques, times, &improved);
         }
         if (summary.termination == DiagnosisLoopTermination::kDiagnosisFailed) {
           throw NumericalError("the diagnosis failed: " + summary.message);
