@@ -55,7 +55,8 @@
 // the training part, the first --heldout-rows rows of the held-out part (contiguous). The
 // model --real-model is fitted on the training part with the CLI's defaults and diagnosed on
 // the held-out part, as is ("uninjected"); the training part is then refitted with every
-// suggestion, and the held-out RMS / noise before and after is reported. Then known effects
+// suggestion, and the held-out RMS / noise before and after is reported (pooled, and of each
+// suggested joint: lagk is one GP of every joint, so a refit changes the other joints too). Then known effects
 // are added to the measured torques of the held-out part on one joint at a time (the --joints
 // joints with the widest range of q in that part), at a = size x the joint's noise level
 // sigma_j (successive differences of the
@@ -78,7 +79,10 @@
 // round suggests nothing new; the columns then count every round's suggestions, and "after" is
 // the last refit. --findings-dir writes the JSON of every diagnosis. --models-dir keeps the fitted models (a file
 // per model label and hash of its training data) and loads them instead of fitting again: a
-// rerun with a changed diagnosis skips the fits that did not change. --quick: a CI-size run (PUMA 560, none and
+// rerun with a changed diagnosis skips the fits that did not change. --refit-from=model (the
+// default) starts a lagk refit with effects added from the model they are added to, at its
+// sigma, as RunDiagnosisLoop does; --refit-from=scratch searches the whole sigma grid, as the
+// tables of earlier commits did. --quick: a CI-size run (PUMA 560, none and
 // coulomb, short logs, rbd when --models is at its default; 300 rows of each UR10 part, one
 // cogging injection at 10x the noise). --check: exit 3 unless
 // every diagnosis ran (status ok) and every number is finite.
@@ -258,9 +262,13 @@ struct Fit {
 // model is fitted on the same data with the same evidence rows (the file name holds the label,
 // cut to 60 characters, and a hash of the whole label and those). Models with a URDF chain are always fitted.
 std::string g_models_dir;
+// --refit-from: "model" (a lagk refit with effects added searches from the model it adds them
+// to, at its sigma, as RunDiagnosisLoop does) or "scratch" (the whole sigma grid, as a first
+// fit).
+bool g_refit_from_model = true;
 
 std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
-                   int max_evidence_rows) {
+                   int max_evidence_rows, const std::string& extra) {
   std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the bytes
   auto mix = [&h](const void* data, std::size_t bytes) {
     const auto* p = static_cast<const unsigned char*>(data);
@@ -274,6 +282,7 @@ std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, cons
   }
   mix(t.data(), sizeof(double) * static_cast<std::size_t>(t.size()));
   mix(&max_evidence_rows, sizeof max_evidence_rows);
+  mix(extra.data(), extra.size());
   std::string label = ModelLabel(spec);
   mix(label.data(), label.size());
   if (label.size() > 60) label.resize(60);  // the hash holds the whole label
@@ -283,14 +292,27 @@ std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, cons
   return label + "_" + Format("%016llx", static_cast<unsigned long long>(h));
 }
 
+// from: the model a refit adds effects to (--refit-from), or null.
 Fit FitSpec(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
-            std::shared_ptr<const RigidBodyChain> chain, int max_evidence_rows) {
+            std::shared_ptr<const RigidBodyChain> chain, int max_evidence_rows,
+            const RobotModel* from = nullptr) {
   Fit fit;
   const auto start = std::chrono::steady_clock::now();
+  FitOptions options;
+  std::string extra;  // the start, in the cache key
+  if (g_refit_from_model && from != nullptr && from->fitted() &&
+      from->gp().euler_lagrange() != nullptr) {
+    const EulerLagrangeGPHyperparameters& h = from->gp().euler_lagrange()->hyperparameters();
+    options.euler_lagrange.start = h;
+    extra = Format("from sigma %.17g", h.sigma);
+    for (const Vector* v : {&h.part_weights, &h.noise_std}) {
+      for (Eigen::Index k = 0; k < v->size(); ++k) extra += Format(" %.17g", (*v)[k]);
+    }
+  }
   const std::string cached =
       g_models_dir.empty() || chain
           ? std::string()
-          : g_models_dir + "/" + FitKey(spec, X, Y, t, max_evidence_rows) + ".json";
+          : g_models_dir + "/" + FitKey(spec, X, Y, t, max_evidence_rows, extra) + ".json";
   if (!cached.empty() && std::filesystem::exists(cached)) {
     try {
       fit.model = std::make_unique<RobotModel>(LoadModel(cached));
@@ -301,7 +323,6 @@ Fit FitSpec(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vecto
       std::fprintf(stderr, "    %s: %s (fitting again)\n", cached.c_str(), e.what());
     }
   }
-  FitOptions options;
   options.max_evidence_rows = max_evidence_rows;
   options.model.rigid_body = std::move(chain);
   try {
@@ -589,11 +610,12 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   };
   std::map<std::string, Refit> fitted;  // by label
   fitted[ModelLabel(spec)] = {row.before, "", nullptr};
-  auto evaluate = [&](const ModelSpec& s) {
+  // from: the model the effects are added to (--refit-from).
+  auto evaluate = [&](const ModelSpec& s, const RobotModel* from) {
     const std::string label = ModelLabel(s);
     auto it = fitted.find(label);
     if (it != fitted.end()) return it->second;
-    Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows);
+    Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows, from);
     Refit result{Vector(), fit.error, std::move(fit.model)};
     if (result.model) {
       result.rms = ColumnRms(PredictOn(*result.model, logs.eval.X, logs.eval.t), logs.eval.Y)
@@ -625,8 +647,10 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   };
   int added = add(d.suggestions);
   if (added == 0) row.after = row.before;
+  std::shared_ptr<const RobotModel> current;  // the model of the round (null: the base)
   for (int round = 1; added > 0; ++round) {
-    const Refit after = evaluate(suggested);
+    const Refit after = evaluate(suggested, current ? current.get() : base.model.get());
+    current = after.model;
     row.after = after.rms;
     if (!after.error.empty()) failures += "with the suggestions: " + after.error + "; ";
     if (round >= f.rounds || !after.model) break;
@@ -667,7 +691,7 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   }
   ModelSpec true_spec = spec;
   for (const EffectSpec& e : logs.truth) true_spec.effects.push_back(e);
-  const Refit truth = evaluate(true_spec);
+  const Refit truth = evaluate(true_spec, base.model.get());
   row.truth = truth.rms;
   if (!truth.error.empty()) failures += "with the true effects: " + truth.error + "; ";
   row.pooled_before = Pooled(row.before);
@@ -808,8 +832,10 @@ struct BaselineRow {
   Vector noise;
   double fit_seconds = 0, seconds = 0;
   bool diagnosed = false;
-  // The training part refitted with every suggestion: held-out RMS / noise (pooled).
+  // The training part refitted with every suggestion: held-out RMS / noise (pooled), and of
+  // each suggested joint ("joint 2: 12.6 -> 11.6").
   double before = NAN, after = NAN;
+  std::string suggested_joints;
 };
 
 struct RealResult {
@@ -862,10 +888,21 @@ RealResult RunReal(const Flags& f) {
           for (const EffectSpec& e : ParseEffectList(s.spec)) with.effects.push_back(e);
         }
         const Fit refit =
-            FitSpec(with, log.train.X, log.train.Y, log.train.t, nullptr, f.real_ml_max_rows);
+            FitSpec(with, log.train.X, log.train.Y, log.train.t, nullptr, f.real_ml_max_rows,
+                    fit.model.get());
         if (refit.model) {
-          base.after =
-              Pooled(ColumnRms(PredictOn(*refit.model, X, t), Y).cwiseQuotient(base.noise));
+          const Vector rms_before = ColumnRms(prediction, Y).cwiseQuotient(base.noise);
+          const Vector rms_after =
+              ColumnRms(PredictOn(*refit.model, X, t), Y).cwiseQuotient(base.noise);
+          base.after = Pooled(rms_after);
+          std::set<int> joints;
+          for (const Suggestion& s : d0.suggestions) joints.insert(s.joint);
+          for (int j : joints) {
+            base.suggested_joints += Format("%sjoint %d: %s -> %s",
+                                            base.suggested_joints.empty() ? "" : ", ", j,
+                                            Num(rms_before[j - 1]).c_str(),
+                                            Num(rms_after[j - 1]).c_str());
+          }
         } else {
           base.note += "refit with the suggestions: " + refit.error;
         }
@@ -957,17 +994,18 @@ RealResult RunReal(const Flags& f) {
   std::printf("\n### Part B: real logs, model %s (CLI defaults) fitted on the training part\n\n"
               "Uninjected held-out part:\n\n"
               "| log | model | noise per joint (successive differences) | suggestions | held-out "
-              "RMS/noise | refit on training + suggestions | fit s | diagnosis s | other "
-              "findings |\n|---|---|---|---|---|---|---|---|---|\n",
+              "RMS/noise | refit on training + suggestions | the suggested joints | fit s | "
+              "diagnosis s | other findings |\n|---|---|---|---|---|---|---|---|---|---|\n",
               ToString(spec).c_str());
   for (const BaselineRow& b : result.baselines) {
     std::string noise;
     for (Eigen::Index j = 0; j < b.noise.size(); ++j) noise += (j ? " " : "") + Num(b.noise[j]);
-    std::printf("| %s | %s | %s | %s | %s | %s | %.0f | %.0f | %s |\n", b.log.c_str(),
+    std::printf("| %s | %s | %s | %s | %s | %s | %s | %.0f | %.0f | %s |\n", b.log.c_str(),
                 b.model.c_str(), noise.c_str(),
                 (b.suggestions + (b.note.empty() ? "" : " (" + b.note + ")")).c_str(),
-                Num(b.before).c_str(), Num(b.after).c_str(), b.fit_seconds, b.seconds,
-                b.other.c_str());
+                Num(b.before).c_str(), Num(b.after).c_str(),
+                b.suggested_joints.empty() ? "—" : b.suggested_joints.c_str(), b.fit_seconds,
+                b.seconds, b.other.c_str());
   }
   std::printf("\nInjected effects (one joint at a time; found: named on its joint, cogging period "
               "within 10%%; false alarms: suggestions beyond the uninjected log's, per run):\n\n"
@@ -1187,6 +1225,12 @@ int main(int argc, char** argv) {
   AddFlag(&app, "--rounds", &f.rounds,
           "rounds of the loop in part A: the model refitted with the suggestions is diagnosed "
           "again and its new suggestions added (1: one diagnosis)");
+  std::string refit_from = "model";
+  app.add_option("--refit-from", refit_from,
+                 "lagk refits with effects added: from the model they are added to, at its sigma "
+                 "(model, as RunDiagnosisLoop), or from the whole sigma grid (scratch)")
+      ->check(CLI::IsMember({"model", "scratch"}))
+      ->capture_default_str();
   AddFlag(&app, "--models-dir", &structgp::g_models_dir,
           "save each fitted model here, and load it instead of fitting the same model on the "
           "same data again (not models with a URDF)");
@@ -1198,5 +1242,8 @@ int main(int argc, char** argv) {
                "at its default), a UR10 slice with one cogging injection");
   app.add_flag("--check", f.check,
                "exit 3 unless every fit and diagnosis ran and every number is finite");
-  return structgp::RunProgram(&app, argc, argv, [&] { return structgp::Run(f, argc, argv); });
+  return structgp::RunProgram(&app, argc, argv, [&] {
+    structgp::g_refit_from_model = refit_from == "model";
+    return structgp::Run(f, argc, argv);
+  });
 }

@@ -705,7 +705,8 @@ void BindDiagnosis(py::module_& m) {
       py::arg("train"), py::arg("rounds") = DiagnosisLoopOptions().max_rounds,
       "The diagnosis loop, as `structgp diagnose --rounds`: diagnoses the model on X, Y (and t) "
       "with its training data train=(X, Y[, t]), adds every suggestion, refits on the training "
-      "data with the fit's defaults and diagnoses again, up to `rounds` diagnoses or until one "
+      "data with the fit's defaults (a lagk model from its own hyper-parameters, at its sigma) "
+      "and diagnoses again, up to `rounds` diagnoses or until one "
       "suggests nothing. Returns (model, loop): the last refitted Model (the given one when "
       "nothing was added) and the loop as a dict (termination, model, rounds with each one's "
       "added effects, refit and findings). Raises ValueError for bad input, structgp.Error when "

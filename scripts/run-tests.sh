@@ -57,6 +57,7 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   release_only+='|^test_rbd_model\.RbdModelTest\.RbdPolLearnsWhatTheUrdfGetsWrong$'
   release_only+='|^test_lagk_model\.LagkModel\.DiagnosisNamesTheHiddenFrictionAndNothingElse$'
   release_only+='|^test_lagk_model\.LagkModel\.TakesTimeEffectsThroughFitModelFileAndDiagnosis$'
+  release_only+='|^test_diagnosis_loop\.DiagnosisLoop\.RefitsLagkFromTheModelsOwnHyperparameters$'
   release_only+='|^test_diagnosis\.FunctionSpacePol\.DiagnosisNamesCoulombOnFourJoints$'
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \

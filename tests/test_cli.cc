@@ -198,6 +198,22 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   r = RunCli(dir, {"evaluate", "--model", lagk_drift, "--data", dir.File("no_t.csv")});
   EXPECT_EQ(r.code, 2);
   EXPECT_TRUE(Contains(r.err, "time")) << r.err;
+  // An effect added to the lagk+fri model, its search started from that model: at its sigma.
+  const std::string lagk_from = dir.File("lagk_from.json");
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk+fri", "--effects",
+                   "offset@1", "--start-from", lagk, "--lagk-ml-values", "200",
+                   "--inducing-states", "100", "--out", lagk_from, "-q"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "from the given hyper-parameters")) << r.out;
+  const double log_sigma = Json::parse(ReadFile(lagk))["hyperparameters"]["shape"][0];
+  EXPECT_EQ(Json::parse(ReadFile(lagk_from))["hyperparameters"]["shape"][0].get<double>(),
+            log_sigma);
+  // Only a lagk model starts a lagk search.
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "pol", "--start-from", lagk,
+                   "--out", dir.File("never.json"), "-q"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Contains(r.err, "--start-from")) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.File("never.json")));
 }
 
 TEST(Cli, EverySubcommandHasHelp) {

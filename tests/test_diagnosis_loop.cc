@@ -151,5 +151,54 @@ TEST(DiagnosisLoop, OneRoundStopsAfterItsRefitAndBadInputIsRefused) {
                std::invalid_argument);
 }
 
+// lagk is one GP of every joint: its refits start from the current model's hyper-parameters,
+// at its sigma (the default), and equal FitModel by hand with that start; with
+// refit_from_model off they equal a fit from scratch over the whole sigma grid.
+TEST(DiagnosisLoop, RefitsLagkFromTheModelsOwnHyperparameters) {
+  const sim::Dataset& train = Scenario().train;
+  const sim::Dataset& log = Scenario().test;
+  FitOptions fit;
+  fit.euler_lagrange.sigmas = {1.0, 10.0, 100.0};
+  fit.euler_lagrange.hyperparameter_rows = 150;
+  const FittedModel start = FitModel(ParseModelSpec("lagk"), train.X, train.Y, train.t, fit);
+  ASSERT_TRUE(start.summary.IsUsable()) << start.summary.message;
+  const EulerLagrangeGPHyperparameters& h0 = start.model.gp().euler_lagrange()->hyperparameters();
+
+  DiagnosisLoopOptions options;
+  options.max_rounds = 1;
+  options.fit = fit;
+  std::optional<RobotModel> improved;
+  const DiagnosisLoopSummary s = RunDiagnosisLoop(options, start.model, train.X, train.Y, train.t,
+                                                  log.X, log.Y, log.t, &improved);
+  ASSERT_EQ(s.rounds.size(), 1u) << s.BriefReport();
+  ASSERT_FALSE(s.rounds[0].added.empty()) << s.BriefReport();
+  ASSERT_TRUE(improved.has_value()) << s.BriefReport();
+  EXPECT_EQ(improved->gp().euler_lagrange()->hyperparameters().sigma, h0.sigma);
+
+  ModelSpec spec = start.model.spec();
+  spec.effects = s.rounds[0].added;
+  FitOptions from_model = fit;
+  from_model.euler_lagrange.start = h0;
+  const FittedModel by_hand = FitModel(spec, train.X, train.Y, train.t, from_model);
+  ASSERT_TRUE(by_hand.summary.IsUsable()) << by_hand.summary.message;
+  Matrix a, b;
+  by_hand.model.PredictRows(ModelInputs(by_hand.model, log.X, log.t), &a);
+  improved->PredictRows(ModelInputs(*improved, log.X, log.t), &b);
+  EXPECT_EQ(a, b);
+
+  options.refit_from_model = false;
+  std::optional<RobotModel> scratch;
+  const DiagnosisLoopSummary s2 = RunDiagnosisLoop(options, start.model, train.X, train.Y,
+                                                   train.t, log.X, log.Y, log.t, &scratch);
+  ASSERT_TRUE(scratch.has_value()) << s2.BriefReport();
+  ASSERT_EQ(ToString(s2.rounds[0].added), ToString(s.rounds[0].added));
+  const FittedModel grid = FitModel(spec, train.X, train.Y, train.t, fit);
+  ASSERT_TRUE(grid.summary.IsUsable()) << grid.summary.message;
+  grid.model.PredictRows(ModelInputs(grid.model, log.X, log.t), &a);
+  scratch->PredictRows(ModelInputs(*scratch, log.X, log.t), &b);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(s.rounds[0].refit->method_description, s2.rounds[0].refit->method_description);
+}
+
 }  // namespace
 }  // namespace structgp

@@ -562,6 +562,71 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
   }
 }
 
+// A search from given hyper-parameters (a refit with an effect added starts from the model's
+// own): at their sigma alone, from their weights and noise levels. From a grid's optimum it
+// starts at that optimum's evidence and does not leave it; from another sigma's optimum it
+// stays at that sigma, where the grid would have moved; a start that does not fit is refused.
+TEST(EulerLagrangeGP, ASearchFromGivenHyperparametersStaysAtTheirSigma) {
+  std::mt19937 rng(17);
+  const int n = 3;
+  const LagrangianRegressorMap map(n);
+  Vector w(2 * n);
+  w << 0.5, 2.0, 1.0, 3.0, 1.0, 0.5;
+  const Vector v = map.KernelPriorVariance(3.0, w);
+  std::normal_distribution<double> normal;
+  const Vector theta = Vector::NullaryExpr(map.dim(), [&]() { return normal(rng); })
+                           .cwiseProduct(v.cwiseSqrt());
+  const Matrix X = RandomStates(150, n, &rng);
+  const Matrix truth = TwinTorques(map, theta, X);
+  const double noise = 0.05 * std::sqrt(truth.squaredNorm() / truth.size());
+  const Matrix Y = truth + Matrix::NullaryExpr(150, n, [&]() { return noise * normal(rng); });
+  EulerLagrangeGPOptions options;
+  options.sigmas = {1.0, 3.0, 10.0};
+  options.hyperparameter_rows = 100;
+  const EulerLagrangeGPSummary grid = FitEulerLagrangeGP(X, Y, options, nullptr);
+  ASSERT_EQ(grid.status, Status::kOk) << grid.message;
+
+  EulerLagrangeGPOptions from = options;
+  from.start = grid.hyperparameters;
+  const EulerLagrangeGPSummary again = FitEulerLagrangeGP(X, Y, from, nullptr);
+  ASSERT_EQ(again.status, Status::kOk) << again.message;
+  EXPECT_EQ(again.sigmas, std::vector<double>{grid.hyperparameters.sigma});
+  EXPECT_NEAR(again.initial_log_evidence, grid.log_evidence, 1e-6 * std::abs(grid.log_evidence));
+  EXPECT_GE(again.log_evidence, grid.log_evidence - 1e-6 * std::abs(grid.log_evidence));
+  for (int k = 0; k < 2 * n; ++k) {
+    EXPECT_NEAR(std::log(again.hyperparameters.part_weights[k]),
+                std::log(grid.hyperparameters.part_weights[k]), 0.05)
+        << "part " << k;
+  }
+
+  // The optimum at a sigma the grid did not choose: the search from it stays there.
+  const double other = grid.hyperparameters.sigma == 10.0 ? 1.0 : 10.0;
+  EulerLagrangeGPOptions at_other = options;
+  at_other.sigmas = {other};
+  const EulerLagrangeGPSummary other_fit = FitEulerLagrangeGP(X, Y, at_other, nullptr);
+  ASSERT_EQ(other_fit.status, Status::kOk) << other_fit.message;
+  from.start = other_fit.hyperparameters;
+  std::optional<EulerLagrangeGP> gp;
+  const EulerLagrangeGPSummary stays = FitEulerLagrangeGP(X, Y, from, &gp);
+  ASSERT_EQ(stays.status, Status::kOk) << stays.message;
+  ASSERT_TRUE(gp.has_value());
+  EXPECT_EQ(stays.hyperparameters.sigma, other);
+  EXPECT_LT(stays.log_evidence, grid.log_evidence);
+  EXPECT_GE(stays.log_evidence,
+            other_fit.log_evidence - 1e-6 * std::abs(other_fit.log_evidence));
+
+  // A start that does not fit the data or has a searched part without weight.
+  EulerLagrangeGPHyperparameters bad = grid.hyperparameters;
+  bad.noise_std = Vector::Ones(n + 1);
+  bad.part_weights = Vector::Ones(2 * (n + 1));
+  from.start = bad;
+  EXPECT_THROW(FitEulerLagrangeGP(X, Y, from, nullptr), std::invalid_argument);
+  bad = grid.hyperparameters;
+  bad.part_weights[1] = 0.0;
+  from.start = bad;
+  EXPECT_THROW(FitEulerLagrangeGP(X, Y, from, nullptr), std::invalid_argument);
+}
+
 TEST(EulerLagrangeGP, RejectsBadInputWithAClearError) {
   std::mt19937 rng(2);
   const int n = 2;

@@ -90,6 +90,11 @@ class FitCommand : public Command {
                     "cost grows with their cube")
         ->check(CLI::Range(10, 1000000))
         ->capture_default_str();
+    cmd->add_option("--start-from", start_from_,
+                    "lagk with --hyper ml: search the evidence from this model file's "
+                    "hyper-parameters, at its sigma (the model the --effects are added to: "
+                    "the rest of the model then stays where it was unless the evidence moves "
+                    "it; as diagnose --rounds refits)");
     AddRobotFlags(cmd, &robot_);
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
     cmd->add_flag("-v,--verbose", options_.evidence.verbose, "One line per optimiser iteration");
@@ -112,6 +117,21 @@ class FitCommand : public Command {
     const Progress progress("fit", quiet_);
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
+    if (!start_from_.empty()) {
+      const RobotModel from = LoadModel(start_from_);
+      if (spec.base != BaseModel::kLagk || options_.method != HyperparameterMethod::kEvidence ||
+          !from.fitted() || from.gp().euler_lagrange() == nullptr) {
+        throw UsageError("--start-from: starts the evidence search of a lagk model (--model lagk, "
+                         "--hyper ml) from a lagk model; got --model " + model_ + " --hyper " +
+                         hyper_ + " and a " + ModelLabel(from.spec()) + " model in " + start_from_);
+      }
+      if (from.num_joints() != data.num_joints) {
+        throw UsageError("--start-from: " + start_from_ + " has " +
+                         std::to_string(from.num_joints()) + " joints, " + data_ + " " +
+                         std::to_string(data.num_joints));
+      }
+      options_.euler_lagrange.start = from.gp().euler_lagrange()->hyperparameters();
+    }
     RobotModelOptions options;
     options.batch.num_threads = options_.num_threads;
     options.batch.max_kernel_rows = max_kernel_rows_;
@@ -129,6 +149,7 @@ class FitCommand : public Command {
 
  private:
   std::string data_, model_, effects_, hyper_ = "ml", out_, json_, prior_ = "gaussian";
+  std::string start_from_;
   bool no_check_ = false;
   FitOptions options_;
   RobotFlags robot_;

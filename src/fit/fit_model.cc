@@ -413,11 +413,14 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   const EulerLagrangeGPOptions o = EulerLagrangeOptions(fit->options(), model);
   const int used = static_cast<int>(EvenlySpacedRows(X.rows(), o.hyperparameter_rows).size());
   std::string grid;
-  for (double sigma : o.sigmas) grid += (grid.empty() ? "" : ", ") + Number(sigma);
+  for (double sigma : o.start ? std::vector<double>{o.start->sigma} : o.sigmas) {
+    grid += (grid.empty() ? "" : ", ") + Number(sigma);
+  }
   if (!fit->Report(Format("maximising the evidence of the Euler-Lagrange kernel over %d part "
-                          "weights and %d noise levels at sigma in {%s} on %d of %d rows (Ceres "
+                          "weights and %d noise levels at sigma in {%s}%s on %d of %d rows (Ceres "
                           "LBFGS, O((m N)^3) per evaluation)",
-                          o.per_link ? 2 * N : 2, N, grid.c_str(), used,
+                          o.per_link ? 2 * N : 2, N, grid.c_str(),
+                          o.start ? " from the given hyper-parameters" : "", used,
                           static_cast<int>(X.rows())))) {
     return false;
   }
@@ -438,9 +441,12 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
     summary.num_evaluations += s.evaluations_per_sigma[k];
   }
   summary.method_description =
-      Format("type-II maximum likelihood over the part weights and each joint's noise, best of "
-             "%d sigmas (sigma = %s)",
-             static_cast<int>(s.sigmas.size()), Number(s.hyperparameters.sigma).c_str());
+      o.start ? Format("type-II maximum likelihood over the part weights and each joint's noise "
+                       "from the given hyper-parameters, at their sigma = %s",
+                       Number(s.hyperparameters.sigma).c_str())
+              : Format("type-II maximum likelihood over the part weights and each joint's "
+                       "noise, best of %d sigmas (sigma = %s)",
+                       static_cast<int>(s.sigmas.size()), Number(s.hyperparameters.sigma).c_str());
   std::string per_sigma;
   for (size_t k = 0; k < s.sigmas.size(); ++k) {
     per_sigma += (per_sigma.empty() ? "" : ", ") + Number(s.sigmas[k]) + ": " +
@@ -456,7 +462,7 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
                                    static_cast<int>(X.rows())));
   }
   const double best = s.hyperparameters.sigma;
-  if (o.sigmas.size() > 1 && (best == *std::min_element(o.sigmas.begin(), o.sigmas.end()) ||
+  if (!o.start && o.sigmas.size() > 1 && (best == *std::min_element(o.sigmas.begin(), o.sigmas.end()) ||
                               best == *std::max_element(o.sigmas.begin(), o.sigmas.end()))) {
     summary.at_bounds.push_back("log_sigma");
     summary.notes.push_back("sigma at the edge of its grid (the optimum may lie beyond): " +

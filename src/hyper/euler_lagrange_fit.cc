@@ -162,6 +162,19 @@ void EulerLagrangeGPOptions::Validate() const {
   Require(inducing_states >= 0, "options: inducing_states must be >= 0");
   Require(max_iterations >= 1, "options: max_iterations must be >= 1");
   Require(num_threads >= 1, "options: num_threads must be >= 1");
+  if (start) {
+    Require(start->sigma > 0.0 && std::isfinite(start->sigma),
+            "options: start's sigma must be finite and > 0");
+    const int n = start->num_joints();
+    Require(n >= 1 && start->part_weights.size() == 2 * n,
+            "options: start needs 2N part weights and N noise levels");
+    for (int k : SearchedParts(n, per_link)) {
+      Require(start->part_weights[k] > 0.0 && std::isfinite(start->part_weights[k]),
+              "options: start's weight of part " + std::to_string(k) + " must be finite and > 0");
+    }
+    Require(start->noise_std.allFinite() && (start->noise_std.array() > 0.0).all(),
+            "options: start's noise levels must be finite and > 0");
+  }
   Require((effects != nullptr) == (effect_prior_variance.size() > 0) &&
               (effects == nullptr || effects->dim() == effect_prior_variance.size()),
           "options: effects need a map and one prior variance per feature");
@@ -184,7 +197,13 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
 
   double best = -std::numeric_limits<double>::infinity();
   EulerLagrangeGPHyperparameters best_h;
-  std::vector<double> sigmas = options.sigmas;
+  if (options.start) {
+    Require(options.start->num_joints() == n,
+            "options: start has " + std::to_string(options.start->num_joints()) +
+                " joints, the data " + std::to_string(n));
+  }
+  std::vector<double> sigmas =
+      options.start ? std::vector<double>{options.start->sigma} : options.sigmas;
   std::sort(sigmas.begin(), sigmas.end());
   sigmas.erase(std::unique(sigmas.begin(), sigmas.end()), sigmas.end());
   // The previous sigma's optimum with each part's log weight plus the log of its mean prior
@@ -200,6 +219,10 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
+    if (options.start) {
+      for (size_t k = 0; k < P; ++k) p[k] = std::log(options.start->part_weights[searched[k]]);
+      for (int j = 0; j < n; ++j) p[P + static_cast<size_t>(j)] = std::log(options.start->noise_std[j]);
+    }
     if (!carried.empty()) {
       std::vector<double> warm = carried;
       for (size_t k = 0; k < P; ++k) warm[k] -= LogMeanPartVariance(evidence, k);

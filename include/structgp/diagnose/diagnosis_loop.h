@@ -42,6 +42,13 @@ struct DiagnosisLoopOptions {
   /// The refits; FitOptions::model is replaced by the diagnosed model's own options (its
   /// friction width, inducing states, threads).
   FitOptions fit;
+  /// lagk: each refit searches the evidence from the current model's hyper-parameters, at its
+  /// sigma (FitOptions::euler_lagrange.start), so that adding an effect to one joint leaves
+  /// the rest of the model where it was unless the evidence moves it; false: from the
+  /// data-derived starts of the whole sigma grid, as a first fit. (lagk is one GP of every
+  /// joint: a refit from scratch may take another sigma and change every joint.) Other models
+  /// refit from their data-derived starts either way.
+  bool refit_from_model = true;
   /// True when usable; otherwise false with the reason in *error (may be null).
   bool IsValid(std::string* error) const;
 };

@@ -44,6 +44,13 @@ struct EulerLagrangeGPOptions {
   /// Workers of the DTC's accumulation over the training states (EulerLagrangeGP::Condition).
   int num_threads = 1;
   int max_iterations = 80;
+  /// Start the search from these hyper-parameters instead of the grid's data-derived starts
+  /// (a model refitted with an effect added: the diagnosis loop passes the model's own): at
+  /// their sigma alone (`sigmas` is then not used), from their part weights and noise levels,
+  /// so that the refit stays at the model's optimum where the added effect leaves it one.
+  /// Friction's and the effects' scales stay data-derived, as without it. Must have the data's
+  /// number of joints and positive weights on the searched parts.
+  std::optional<EulerLagrangeGPHyperparameters> start;
   /// Throws std::invalid_argument naming the first bad field.
   void Validate() const;
 };
