@@ -476,8 +476,15 @@ TEST(EulerLagrangeGP, EvidenceGradientMatchesCentralDifferences) {
   }
 }
 
-TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
-  std::mt19937 rng(13);
+// Torques of a 3-joint chain drawn from the kernel's own class (the regressor twin's prior at
+// sigma 3 with a weight per part): at `rows` random states with 5% noise (Y), and noiseless at
+// `test_rows` more.
+struct ClassDraw {
+  Matrix X, truth, Y, X_test, truth_test;
+  double noise = 0.0;
+};
+ClassDraw DrawOfItsClass(unsigned seed, int rows, int test_rows) {
+  std::mt19937 rng(seed);
   const int n = 3;
   const LagrangianRegressorMap map(n);
   Vector w(2 * n);
@@ -486,10 +493,21 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
   std::normal_distribution<double> normal;
   const Vector theta = Vector::NullaryExpr(map.dim(), [&]() { return normal(rng); })
                            .cwiseProduct(v.cwiseSqrt());
-  const Matrix X = RandomStates(200, n, &rng), Xt = RandomStates(100, n, &rng);
-  const Matrix truth = TwinTorques(map, theta, X), truth_t = TwinTorques(map, theta, Xt);
-  const double noise = 0.05 * std::sqrt(truth.squaredNorm() / truth.size());
-  const Matrix Y = truth + Matrix::NullaryExpr(200, n, [&]() { return noise * normal(rng); });
+  ClassDraw d;
+  d.X = RandomStates(rows, n, &rng);
+  d.X_test = RandomStates(test_rows, n, &rng);
+  d.truth = TwinTorques(map, theta, d.X);
+  d.truth_test = TwinTorques(map, theta, d.X_test);
+  d.noise = 0.05 * std::sqrt(d.truth.squaredNorm() / d.truth.size());
+  d.Y = d.truth + Matrix::NullaryExpr(rows, n, [&]() { return d.noise * normal(rng); });
+  return d;
+}
+
+TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
+  const int n = 3;
+  const ClassDraw draw = DrawOfItsClass(13, 200, 100);
+  const Matrix &X = draw.X, &Y = draw.Y, &Xt = draw.X_test, &truth_t = draw.truth_test;
+  const double noise = draw.noise;
   EulerLagrangeGPOptions options;
   options.sigmas = {1.0, 3.0, 10.0};
   options.hyperparameter_rows = 120;
@@ -567,19 +585,9 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
 // starts at that optimum's evidence and does not leave it; from another sigma's optimum it
 // stays at that sigma, where the grid would have moved; a start that does not fit is refused.
 TEST(EulerLagrangeGP, ASearchFromGivenHyperparametersStaysAtTheirSigma) {
-  std::mt19937 rng(17);
   const int n = 3;
-  const LagrangianRegressorMap map(n);
-  Vector w(2 * n);
-  w << 0.5, 2.0, 1.0, 3.0, 1.0, 0.5;
-  const Vector v = map.KernelPriorVariance(3.0, w);
-  std::normal_distribution<double> normal;
-  const Vector theta = Vector::NullaryExpr(map.dim(), [&]() { return normal(rng); })
-                           .cwiseProduct(v.cwiseSqrt());
-  const Matrix X = RandomStates(150, n, &rng);
-  const Matrix truth = TwinTorques(map, theta, X);
-  const double noise = 0.05 * std::sqrt(truth.squaredNorm() / truth.size());
-  const Matrix Y = truth + Matrix::NullaryExpr(150, n, [&]() { return noise * normal(rng); });
+  const ClassDraw draw = DrawOfItsClass(17, 150, 0);
+  const Matrix &X = draw.X, &Y = draw.Y;
   EulerLagrangeGPOptions options;
   options.sigmas = {1.0, 3.0, 10.0};
   options.hyperparameter_rows = 100;
