@@ -305,7 +305,7 @@ class Model {
 
   Model& Fit(const py::object& X, const py::object& Y, const py::object& t,
              const std::string& hyper, const py::object& starts, const std::string& prior,
-             bool check, bool verbose) {
+             bool check, bool verbose, const py::object& start_from) {
     const Matrix states = AsMatrix(X, "X");
     const Matrix torques = AsMatrix(Y, "Y");
     const Vector times = AsVector(t, "t");
@@ -319,6 +319,17 @@ class Model {
     if (!starts.is_none()) o.evidence.num_starts = starts.cast<int>();
     o.check.enabled = check;
     o.evidence.verbose = verbose;
+    if (!start_from.is_none()) {
+      const RobotModel& from = start_from.cast<const Model&>().fitted("start_from");
+      if (spec_.base != BaseModel::kLagk || o.method != HyperparameterMethod::kEvidence ||
+          from.gp().euler_lagrange() == nullptr) {
+        throw std::invalid_argument(
+            "start_from: starts the evidence search (hyper='ml') of a lagk model from a lagk "
+            "model; got " + ModelLabel(spec_) + " with hyper='" + hyper + "' and a " +
+            ModelLabel(from.spec()) + " model");
+      }
+      o.euler_lagrange.start = from.gp().euler_lagrange()->hyperparameters();
+    }
     o.num_threads = options_.batch.num_threads;
     RobotModel model(spec_, static_cast<int>(torques.cols()), options_);
     FitSummary summary;
@@ -459,11 +470,12 @@ save / Model.load use the CLI's model files.
       .def("fit", &Model::Fit, py::arg("X"), py::arg("Y"), py::arg("t") = py::none(),
            py::kw_only(), py::arg("hyper") = "ml", py::arg("starts") = py::none(),
            py::arg("prior") = "gaussian", py::arg("check") = true, py::arg("verbose") = false,
-           py::return_value_policy::reference_internal,
+           py::arg("start_from") = py::none(), py::return_value_policy::reference_internal,
            "Fits the model to X (m x 3N), Y (m x N) and optional times t (m), rows in time "
            "order: hyper 'ml' (type-II maximum likelihood with a prior, `starts` runs), 'cv' "
-           "(blocked cross-validation) or 'fixed' (the defaults). Returns self; the summary is "
-           "in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
+           "(blocked cross-validation) or 'fixed' (the defaults). start_from: a fitted lagk "
+           "Model whose hyper-parameters start a lagk model's evidence search, at its sigma "
+           "(`structgp fit --start-from`). Returns self; the summary is in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
       .def("predict", &Model::Predict, py::arg("X"), py::arg("t") = py::none(),
            py::arg("return_std") = false,
            "Predicted torques (m x N); with return_std=True also the posterior standard "

@@ -124,3 +124,30 @@ def test_the_diagnosis_loop_is_the_programs(cli, demo, tmp_path):
     assert not np.array_equal(better.predict(log.X), model.predict(log.X))
     with pytest.raises(ValueError):
         structgp.diagnose_loop(model, log.X, log.Y, log.t, train=(train.X,), rounds=3)
+
+
+def test_a_lagk_fit_from_another_model_is_the_programs(cli, demo, tmp_path):
+    """start_from (structgp fit --start-from): the evidence search of a lagk model with an
+    effect added starts from another lagk model, at its sigma; the module and the program give
+    the same model."""
+    with open(demo / "train.csv", newline="") as f:
+        rows = list(csv.reader(f))[:301]
+    small = tmp_path / "small.csv"
+    with open(small, "w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    base_path, cli_path = tmp_path / "base.json", tmp_path / "from.json"
+    run(cli, "fit", "--data", small, "--model", "lagk+fri", "--hyper", "fixed", "--out", base_path,
+        "--quiet")
+    run(cli, "fit", "--data", small, "--model", "lagk+fri", "--effects", "offset@1",
+        "--start-from", base_path, "--out", cli_path, "--quiet")
+    data = structgp.read_robot_csv(str(small))
+    base = structgp.Model.load(str(base_path))
+    model = structgp.Model("lagk+fri + offset@1").fit(data.X, data.Y, data.t, start_from=base)
+    assert "from the given hyper-parameters" in model.summary.method_description
+    saved = json.loads(cli_path.read_text())
+    assert saved["hyperparameters"]["shape"][0] == json.loads(base_path.read_text())["hyperparameters"]["shape"][0]
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    np.testing.assert_allclose(model.predict(test.X), structgp.Model.load(str(cli_path)).predict(test.X),
+                               rtol=1e-10, atol=1e-10)
+    with pytest.raises(ValueError, match="start_from"):
+        structgp.Model("pol+fri").fit(data.X, data.Y, data.t, start_from=base)
