@@ -118,7 +118,9 @@ class FitCommand : public Command {
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
     if (!start_from_.empty()) {
-      const RobotModel from = LoadModel(start_from_);
+      LoadOptions load;
+      load.num_threads = options_.num_threads;
+      const RobotModel from = LoadModel(start_from_, load);
       if (spec.base != BaseModel::kLagk || options_.method != HyperparameterMethod::kEvidence ||
           !from.fitted() || from.gp().euler_lagrange() == nullptr) {
         throw UsageError("--start-from: starts the evidence search of a lagk model (--model lagk, "
