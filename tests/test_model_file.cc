@@ -20,6 +20,7 @@
 
 #include "model_file_checksum.h"
 #include "temp_files.h"
+#include "structgp/fit/fit_model.h"
 #include "structgp/io/model_file.h"
 #include "structgp/kernel/kernel.h"
 #include "structgp/model/robot_model.h"
@@ -209,6 +210,59 @@ TEST(ModelFile, FunctionSpaceRbfRoundTripsExactly) {
   ExpectSameModel(model, loaded);
   ContinueLearning(&model, &loaded, 25);
   ExpectSamePredictions(model, loaded);
+}
+
+// The header of a model file (ReadModelFileHeader: what starting a search from it needs)
+// is what the loaded model says: its model and effects, joints, form and hyper-parameters,
+// for a weight-space, a kernel and a lagk model; a corrupted file is refused as by LoadModel.
+TEST(ModelFile, TheHeaderIsWhatTheLoadedModelSays) {
+  TempDir dir;
+  const sim::Dataset& train = Scenario().train;
+  FitOptions fixed;
+  fixed.method = HyperparameterMethod::kFixed;
+  const FittedModel lagk = structgp::FitModel(ParseModelSpec("lagk+fri"), train.X.topRows(200),
+                                              train.Y.topRows(200), Vector(), fixed);
+  ASSERT_TRUE(lagk.summary.IsUsable()) << lagk.summary.message;
+  SaveModel(dir.File("pol.json"), FitModel("pol+fri", "coulomb@2", 300));
+  SaveModel(dir.File("rbf.json"), FitModel("rbf+fri", "", 300));
+  SaveModel(dir.File("lagk.json"), lagk.model);
+  for (const std::string file : {"pol.json", "rbf.json", "lagk.json"}) {
+    const RobotModel loaded = LoadModel(dir.File(file));
+    const ModelFileHeader header = ReadModelFileHeader(dir.File(file));
+    EXPECT_EQ(ModelLabel(header.spec), ModelLabel(loaded.spec())) << file;
+    EXPECT_EQ(header.num_joints, loaded.num_joints()) << file;
+    EXPECT_EQ(header.form, loaded.gp().form()) << file;
+    const Hyperparameters& h = loaded.hyperparameters();
+    ExpectBitIdentical(header.hyperparameters.shape, h.shape, file + " shape");
+    ExpectBitIdentical(header.hyperparameters.log_block_scale, h.log_block_scale, file);
+    ExpectBitIdentical(header.hyperparameters.log_output_scale, h.log_output_scale, file);
+    ExpectSameDouble(header.hyperparameters.log_noise_std, h.log_noise_std, file);
+  }
+  // lagk: the hyper-parameters of its Euler-Lagrange GP, as fit --start-from reads them.
+  const ModelFileHeader header = ReadModelFileHeader(dir.File("lagk.json"));
+  const EulerLagrangeGPHyperparameters read = EulerLagrangeFromHyperparameters(
+      header.hyperparameters, header.num_joints, header.spec.friction);
+  const EulerLagrangeGPHyperparameters& fitted = lagk.model.gp().euler_lagrange()->hyperparameters();
+  EXPECT_EQ(read.sigma, fitted.sigma);
+  ExpectBitIdentical(read.part_weights, fitted.part_weights, "part weights");
+  ExpectBitIdentical(read.noise_std, fitted.noise_std, "noise");
+
+  std::string text;
+  {
+    std::ifstream in(dir.File("lagk.json"));
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const size_t at = text.find("\"num_samples\"");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at + 15, 1, text[at + 15] == '1' ? "2" : "1");
+  std::ofstream(dir.File("bad.json")) << text;
+  try {
+    ReadModelFileHeader(dir.File("bad.json"));
+    ADD_FAILURE() << "no exception";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ReadModelFileHeader(dir.File("missing.json")), DataError);
 }
 
 TEST(ModelFile, PolInFunctionSpaceRoundTripsExactly) {

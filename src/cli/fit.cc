@@ -94,7 +94,8 @@ class FitCommand : public Command {
                     "lagk with --hyper ml: search the evidence from this model file's "
                     "hyper-parameters, at its sigma (the model the --effects are added to: "
                     "the rest of the model then stays where it was unless the evidence moves "
-                    "it; as diagnose --rounds refits)");
+                    "it; as diagnose --rounds refits; only the file's hyper-parameters are "
+                    "read)");
     AddRobotFlags(cmd, &robot_);
     cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
     cmd->add_flag("-v,--verbose", options_.evidence.verbose, "One line per optimiser iteration");
@@ -118,21 +119,23 @@ class FitCommand : public Command {
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
     if (!start_from_.empty()) {
-      LoadOptions load;
-      load.num_threads = options_.num_threads;
-      const RobotModel from = LoadModel(start_from_, load);
+      // The file's hyper-parameters only: its posterior is not factorised.
+      const ModelFileHeader from = ReadModelFileHeader(start_from_);
       if (spec.base != BaseModel::kLagk || options_.method != HyperparameterMethod::kEvidence ||
-          !from.fitted() || from.gp().euler_lagrange() == nullptr) {
+          from.form != Form::kEulerLagrange) {
         throw UsageError("--start-from: starts the evidence search of a lagk model (--model lagk, "
                          "--hyper ml) from a lagk model; got --model " + model_ + " --hyper " +
-                         hyper_ + " and a " + ModelLabel(from.spec()) + " model in " + start_from_);
+                         hyper_ + " and a " + ModelLabel(from.spec) + " model in " + start_from_);
       }
-      if (from.num_joints() != data.num_joints) {
+      if (from.num_joints != data.num_joints) {
         throw UsageError("--start-from: " + start_from_ + " has " +
-                         std::to_string(from.num_joints()) + " joints, " + data_ + " " +
+                         std::to_string(from.num_joints) + " joints, " + data_ + " " +
                          std::to_string(data.num_joints));
       }
-      options_.euler_lagrange.start = from.gp().euler_lagrange()->hyperparameters();
+      const RobotModel layout(from.spec, from.num_joints);  // its effects' prior variances
+      options_.euler_lagrange.start = EulerLagrangeFromHyperparameters(
+          from.hyperparameters, from.num_joints, from.spec.friction,
+          layout.effect_prior_variance());
     }
     RobotModelOptions options;
     options.batch.num_threads = options_.num_threads;

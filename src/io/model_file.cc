@@ -502,13 +502,11 @@ void CheckLoadOptions(const LoadOptions& options) {
   }
 }
 
-}  // namespace
+// The parts of a model file that say what it holds (ParseModelFile, ReadModelFileHeader), each
+// checked as it is read.
 
-RobotModel ParseModelFile(const std::string& text, const std::string& path,
-                          const LoadOptions& load) {
-  CheckLoadOptions(load);
-  const FieldReader r(path);
-  const Json doc = ParseJson(text, path);
+// Its format, version and checksum.
+void CheckEnvelope(const Json& doc, const FieldReader& r) {
   if (!doc.is_object()) {
     r.Fail("not a structgp model file (expected a JSON object with \"format\": \"" +
            std::string(kModelFileFormat) + "\")");
@@ -541,8 +539,10 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
     r.Fail("checksum mismatch: the file says " + checksum->get<std::string>() +
            ", its contents give " + computed + "; the file is corrupted or was edited");
   }
+}
 
-  // The contents are as written by SaveModel (or by a careful hand); check them all the same.
+// The model and its effects ("model", "effect_list").
+ModelSpec ReadSpec(const Json& doc, const FieldReader& r) {
   ModelSpec spec;
   try {
     spec = ParseModelSpec(r.String(doc, "", "model"));
@@ -567,6 +567,47 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
       e.params[key] = r.Number(params, prefix + ".params", key.c_str());
     spec.effects.push_back(std::move(e));
   }
+  return spec;
+}
+
+// The form the model was fitted in ("form").
+Form ReadForm(const Json& doc, const FieldReader& r) {
+  bool ok = false;
+  const Form form = ParseForm(r.String(doc, "", "form"), &ok);
+  if (!ok || form == Form::kAuto) {
+    r.FailField("form",
+                "expected 'weight_space', 'function_space', 'regressor' or 'euler_lagrange'");
+  }
+  return form;
+}
+
+int ReadNumJoints(const Json& doc, const FieldReader& r) {
+  return static_cast<int>(r.Integer(doc, "", "num_joints", 1, 1000));
+}
+
+// "hyperparameters"; *kernel_parameters: its "kernel_parameters".
+Hyperparameters ReadHyperparameters(const Json& doc, const FieldReader& r,
+                                    Vector* kernel_parameters) {
+  Hyperparameters hyper;
+  const Json& hj = r.Get(doc, "", "hyperparameters");
+  hyper.shape = r.Numbers(hj, "hyperparameters", "shape");
+  hyper.log_block_scale = r.Numbers(hj, "hyperparameters", "log_block_scale");
+  hyper.log_noise_std = r.Number(hj, "hyperparameters", "log_noise_std");
+  hyper.log_output_scale = r.Numbers(hj, "hyperparameters", "log_output_scale");
+  *kernel_parameters = r.Numbers(hj, "hyperparameters", "kernel_parameters");
+  return hyper;
+}
+
+}  // namespace
+
+RobotModel ParseModelFile(const std::string& text, const std::string& path,
+                          const LoadOptions& load) {
+  CheckLoadOptions(load);
+  const FieldReader r(path);
+  const Json doc = ParseJson(text, path);
+  CheckEnvelope(doc, r);
+  // The contents are as written by SaveModel (or by a careful hand); check them all the same.
+  const ModelSpec spec = ReadSpec(doc, r);
 
   RobotModelOptions options;
   const Json& o = r.Get(doc, "", "options");
@@ -597,24 +638,14 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
       r.FailField("rigid_body", e.what());
     }
   }
-  const int num_joints = static_cast<int>(r.Integer(doc, "", "num_joints", 1, 1000));
+  const int num_joints = ReadNumJoints(doc, r);
   const bool uses_time = r.Boolean(doc, "", "uses_time");
   const int input_dim = static_cast<int>(r.Integer(doc, "", "input_dim", 1, 1 << 20));
   const long long num_features = r.Integer(doc, "", "num_features", 0, 1LL << 40);
-  bool active_ok = false;
-  const Form active = ParseForm(r.String(doc, "", "form"), &active_ok);
-  if (!active_ok || active == Form::kAuto) {
-    r.FailField("form",
-                "expected 'weight_space', 'function_space', 'regressor' or 'euler_lagrange'");
-  }
+  const Form active = ReadForm(doc, r);
 
-  Hyperparameters hyper;
-  const Json& hj = r.Get(doc, "", "hyperparameters");
-  hyper.shape = r.Numbers(hj, "hyperparameters", "shape");
-  hyper.log_block_scale = r.Numbers(hj, "hyperparameters", "log_block_scale");
-  hyper.log_noise_std = r.Number(hj, "hyperparameters", "log_noise_std");
-  hyper.log_output_scale = r.Numbers(hj, "hyperparameters", "log_output_scale");
-  const Vector kernel_parameters = r.Numbers(hj, "hyperparameters", "kernel_parameters");
+  Vector kernel_parameters;
+  const Hyperparameters hyper = ReadHyperparameters(doc, r, &kernel_parameters);
 
   // Everything below builds library objects, whose checks throw std::invalid_argument.
   try {
@@ -722,8 +753,9 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
   }
 }
 
-RobotModel LoadModel(const std::string& path, const LoadOptions& options) {
-  CheckLoadOptions(options);  // before reading the file
+namespace {
+
+std::string ReadModelFileText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     throw DataError(path, 0, 0, std::string("cannot open for reading: ") + std::strerror(errno));
@@ -733,7 +765,32 @@ RobotModel LoadModel(const std::string& path, const LoadOptions& options) {
   if (in.bad()) {
     throw DataError(path, 0, 0, std::string("cannot read: ") + std::strerror(errno));
   }
-  return ParseModelFile(buffer.str(), path, options);
+  return buffer.str();
+}
+
+}  // namespace
+
+RobotModel LoadModel(const std::string& path, const LoadOptions& options) {
+  CheckLoadOptions(options);  // before reading the file
+  return ParseModelFile(ReadModelFileText(path), path, options);
+}
+
+ModelFileHeader ParseModelFileHeader(const std::string& text, const std::string& path) {
+  const FieldReader r(path);
+  const Json doc = ParseJson(text, path);
+  CheckEnvelope(doc, r);
+  ModelFileHeader header;
+  header.spec = ReadSpec(doc, r);
+  header.num_joints = ReadNumJoints(doc, r);
+  header.form = ReadForm(doc, r);
+  Vector kernel_parameters;
+  header.hyperparameters = ReadHyperparameters(doc, r, &kernel_parameters);
+  if (kernel_parameters.size() > 0) header.hyperparameters.shape = kernel_parameters;
+  return header;
+}
+
+ModelFileHeader ReadModelFileHeader(const std::string& path) {
+  return ParseModelFileHeader(ReadModelFileText(path), path);
 }
 
 }  // namespace structgp

@@ -82,6 +82,25 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
 /// std::invalid_argument when options.num_threads < 1.
 RobotModel LoadModel(const std::string& path, const LoadOptions& options = LoadOptions());
 
+/// What a model file says about its model, without rebuilding it: the model and its effects,
+/// the joints, the form it was fitted in and the hyper-parameters (a kernel model's kernel
+/// parameters in `shape`, as RobotModel::hyperparameters() has them). The file's format,
+/// version and checksum are checked as LoadModel checks them, and these fields as LoadModel
+/// reads them; the rest is not read (a lagk model's posterior is not factorised again): what
+/// starting a search from a model needs (`structgp fit --start-from`).
+struct ModelFileHeader {
+  ModelSpec spec;
+  int num_joints = 0;
+  Form form = Form::kAuto;
+  Hyperparameters hyperparameters;
+};
+
+/// Reads the header of a model file's text; `path` names the source in error messages.
+/// Throws DataError as ParseModelFile.
+ModelFileHeader ParseModelFileHeader(const std::string& text, const std::string& path);
+/// Reads the header of a model file. Throws DataError as LoadModel.
+ModelFileHeader ReadModelFileHeader(const std::string& path);
+
 }  // namespace structgp
 
 #endif  // STRUCTGP_IO_MODEL_FILE_H_
