@@ -1,7 +1,7 @@
 // libFuzzer target: the model file loader (io/model_file.h). Each input is parsed as it is and,
 // when it is a JSON object, once more with its checksum recomputed, so that mutations reach
-// the checks behind the checksum (sizes, invariants, payload decoding). A DataError is the
-// expected outcome for a bad file; a model that loads must predict (or return a status, never a
+// the checks behind the checksum (sizes, invariants, payload decoding); the header reader
+// (ParseModelFileHeader) on the same input. A DataError is the expected outcome for a bad file; a model that loads must predict (or return a status, never a
 // NaN) and save again.
 
 #include <cstddef>
@@ -25,10 +25,22 @@ void Check(bool condition, const char* what) {
 }
 
 void LoadAndCheck(const std::string& text) {
+  // The header reader shares the checks of what it reads: it refuses a file with a DataError
+  // or reads it, and a file that loads has a header that agrees with the model.
+  bool header_read = false;
+  structgp::ModelFileHeader header;
+  try {
+    header = structgp::ParseModelFileHeader(text, "fuzz.json");
+    header_read = true;
+  } catch (const structgp::DataError& e) {
+    Check(e.file() == "fuzz.json", "DataError names the file (header)");
+  }
   try {
     const structgp::RobotModel model = structgp::ParseModelFile(text, "fuzz.json");
     Check(model.fitted(), "a loaded model is fitted");
     const int n = model.num_joints();
+    Check(header_read && header.num_joints == n && header.form == model.gp().form(),
+          "a file that loads has a header that agrees with it");
     structgp::Vector x = structgp::Vector::Zero(model.input_dim());
     structgp::Vector mean(n), latent(n), noisy(n);
     // Weights of absurd (finite) magnitude may overflow a prediction: then a status says so.
