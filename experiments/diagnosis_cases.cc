@@ -300,10 +300,8 @@ Fit FitSpec(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vecto
   const auto start = std::chrono::steady_clock::now();
   FitOptions options;
   std::string extra;  // the start, in the cache key
-  if (g_refit_from_model && from != nullptr && from->fitted() &&
-      from->gp().euler_lagrange() != nullptr) {
-    const EulerLagrangeGPHyperparameters& h = from->gp().euler_lagrange()->hyperparameters();
-    options.euler_lagrange.start = h;
+  if (g_refit_from_model && from != nullptr && StartFromModel(*from, &options)) {
+    const EulerLagrangeGPHyperparameters& h = *options.euler_lagrange.start;
     extra = Format("from sigma %.17g", h.sigma);
     for (const Vector* v : {&h.part_weights, &h.noise_std}) {
       for (Eigen::Index k = 0; k < v->size(); ++k) extra += Format(" %.17g", (*v)[k]);
@@ -880,7 +878,8 @@ RealResult RunReal(const Flags& f) {
     std::set<std::string> baseline_keys;
     for (const Suggestion& s : d0.suggestions) baseline_keys.insert(Key(s));
     // Does adding the uninjected suggestions help on the held-out part (refit on training)?
-    base.before = Pooled(ColumnRms(prediction, Y).cwiseQuotient(base.noise));
+    const Vector rms_before = ColumnRms(prediction, Y).cwiseQuotient(base.noise);
+    base.before = Pooled(rms_before);
     if (!d0.suggestions.empty()) {
       ModelSpec with = spec;
       try {
@@ -891,7 +890,6 @@ RealResult RunReal(const Flags& f) {
             FitSpec(with, log.train.X, log.train.Y, log.train.t, nullptr, f.real_ml_max_rows,
                     fit.model.get());
         if (refit.model) {
-          const Vector rms_before = ColumnRms(prediction, Y).cwiseQuotient(base.noise);
           const Vector rms_after =
               ColumnRms(PredictOn(*refit.model, X, t), Y).cwiseQuotient(base.noise);
           base.after = Pooled(rms_after);

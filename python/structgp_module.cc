@@ -322,13 +322,12 @@ class Model {
     if (!start_from.is_none()) {
       const RobotModel& from = start_from.cast<const Model&>().fitted("start_from");
       if (spec_.base != BaseModel::kLagk || o.method != HyperparameterMethod::kEvidence ||
-          from.gp().euler_lagrange() == nullptr) {
+          !StartFromModel(from, &o)) {
         throw std::invalid_argument(
             "start_from: starts the evidence search (hyper='ml') of a lagk model from a lagk "
             "model; got " + ModelLabel(spec_) + " with hyper='" + hyper + "' and a " +
             ModelLabel(from.spec()) + " model");
       }
-      o.euler_lagrange.start = from.gp().euler_lagrange()->hyperparameters();
     }
     o.num_threads = options_.batch.num_threads;
     RobotModel model(spec_, static_cast<int>(torques.cols()), options_);

@@ -145,9 +145,7 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
     ModelSpec spec = summary.spec;
     spec.effects.insert(spec.effects.end(), r.added.begin(), r.added.end());
     FitOptions round_fit = fit_options;
-    if (options.refit_from_model && current.gp().euler_lagrange() != nullptr) {
-      round_fit.euler_lagrange.start = current.gp().euler_lagrange()->hyperparameters();
-    }
+    if (options.refit_from_model) StartFromModel(current, &round_fit);
     FittedModel fit = FitModel(spec, train_states, train_torques, train_t, round_fit);
     r.refit = fit.summary;
     summary.rounds.push_back(std::move(r));

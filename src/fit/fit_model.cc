@@ -462,8 +462,8 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
                                    static_cast<int>(X.rows())));
   }
   const double best = s.hyperparameters.sigma;
-  if (!o.start && o.sigmas.size() > 1 && (best == *std::min_element(o.sigmas.begin(), o.sigmas.end()) ||
-                              best == *std::max_element(o.sigmas.begin(), o.sigmas.end()))) {
+  // s.sigmas: the grid searched, sorted (one sigma from a given start: no edge).
+  if (s.sigmas.size() > 1 && (best == s.sigmas.front() || best == s.sigmas.back())) {
     summary.at_bounds.push_back("log_sigma");
     summary.notes.push_back("sigma at the edge of its grid (the optimum may lie beyond): " +
                             Number(best));
@@ -773,6 +773,12 @@ void ReportRegressor(const RobotModel& model, const FitSummary& summary, std::os
 }
 
 }  // namespace
+
+bool StartFromModel(const RobotModel& model, FitOptions* options) {
+  if (!model.fitted() || model.gp().euler_lagrange() == nullptr) return false;
+  options->euler_lagrange.start = model.gp().euler_lagrange()->hyperparameters();
+  return true;
+}
 
 std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   std::ostringstream os;

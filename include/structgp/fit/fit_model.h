@@ -241,6 +241,12 @@ Matrix ModelInputs(const RobotModel& model, const ConstMatrixRef& states, const 
 /// the log evidence and the friction and effect coefficients with their posterior std.
 std::string FitReport(const RobotModel& model, const FitSummary& summary);
 
+/// Starts FitModel's hyper-parameter search from `model`'s, where its kind has such a start: a
+/// fitted lagk model's hyper-parameters, at its sigma (EulerLagrangeGPOptions::start). A model
+/// with effects added is refitted so (RunDiagnosisLoop, `structgp fit --start-from`). Returns
+/// false, with *options unchanged, for any other model.
+bool StartFromModel(const RobotModel& model, FitOptions* options);
+
 /// The same as JSON (`structgp fit --json`): {"model", "num_joints", "form", "size",
 /// "summary": every field of FitSummary (enums as their ToString words, each start's
 /// termination, iterations and objective, the held-out check), and when the fit is usable
