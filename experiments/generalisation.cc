@@ -6,7 +6,8 @@
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
 //                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--lagk-inducing=0]
 //                  [--lagk-inducing-rule=cover|stride]
-//                  [--lagk-sigmas=1,3,10,30,100] [--out=FILE.csv]
+//                  [--lagk-sigmas=1,3,10,30,100] [--prior=gaussian|student_t|none]
+//                  [--out=FILE.csv]
 //                  [--quick] [--check]
 //
 // Per robot and case: a slow training log (--train-vias via points in --train-seconds, seed 1,
@@ -97,6 +98,7 @@ struct Flags {
   int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
   std::string lagk_inducing_rule = "cover";  // or "stride"
   std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
+  std::string prior = "gaussian";  // of every type-II search (the CLI's --prior)
   double noise = 0.01;
   int tests = 2;
   std::string out;
@@ -462,6 +464,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
       return row;
     }
     FitOptions options;
+    options.evidence.prior.family = lagk_options.prior.family;  // --prior, for every search
     if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
       RigidBodyChain chain = ChainOf(robot, false);
       if (off) {
@@ -515,6 +518,9 @@ int Run(const Flags& flags, int argc, char** argv) {
                                    ? EulerLagrangeGPOptions::InducingRule::kEvenlySpaced
                                    : EulerLagrangeGPOptions::InducingRule::kCoverStates;
   lagk_options.sigmas = f.lagk_sigmas;
+  if (!FromString(f.prior, &lagk_options.prior.family)) {
+    throw std::invalid_argument("--prior: expected gaussian, student_t or none, got '" + f.prior + "'");
+  }
   std::vector<Row> rows;
   std::printf("| robot | case | model | test RMS / noise per joint | max | mean nMSE | 2σ coverage "
               "per joint | rows | fit s | hyper-parameters |\n|---|---|---|---|---|---|---|---|---|---|\n");
@@ -613,6 +619,9 @@ int main(int argc, char** argv) {
   app.add_option("--lagk-inducing-rule", f.lagk_inducing_rule,
                  "how lagk's inducing states are chosen: cover (the states) or stride (in time)")
       ->check(CLI::IsMember({"cover", "stride"}));
+  structgp::AddFlag(&app, "--prior", &f.prior,
+                    "prior on the log hyper-parameters of every type-II search (as structgp fit "
+                    "--prior): gaussian, student_t or none");
   structgp::AddFlag(&app, "--lagk-sigmas", &f.lagk_sigmas,
                     "the sigma grid of lagk's type-II maximum likelihood")
       ->delimiter(',')

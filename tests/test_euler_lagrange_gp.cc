@@ -12,8 +12,10 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <cstdio>
 #include <random>
 #include <stdexcept>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -29,6 +31,16 @@
 
 namespace structgp {
 namespace {
+
+std::string FormatRow(const Vector& v) {
+  std::string out;
+  char buffer[32];
+  for (Eigen::Index k = 0; k < v.size(); ++k) {
+    std::snprintf(buffer, sizeof buffer, "%s%.3g", k == 0 ? "" : " ", v[k]);
+    out += buffer;
+  }
+  return out;
+}
 
 Matrix RandomStates(int m, int n, std::mt19937* rng) {
   std::uniform_real_distribution<double> u(-2.5, 2.5);
@@ -525,9 +537,19 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
   ASSERT_EQ(summary.warm_start_per_sigma.size(), 3u);
   EXPECT_FALSE(summary.warm_start_per_sigma[0]);
   for (int k = 0; k < 3; ++k) EXPECT_GT(summary.iterations_per_sigma[k], 0) << "sigma " << k;
-  EXPECT_EQ(*std::max_element(summary.log_evidence_per_sigma.begin(),
-                              summary.log_evidence_per_sigma.end()),
-            summary.log_evidence);
+  // The chosen sigma has the largest evidence plus log prior (type-II MAP by default).
+  ASSERT_EQ(summary.log_prior_per_sigma.size(), 3u);
+  int chosen = -1;
+  for (int k = 0; k < 3; ++k) {
+    if (chosen < 0 || summary.log_evidence_per_sigma[k] + summary.log_prior_per_sigma[k] >
+                          summary.log_evidence_per_sigma[chosen] + summary.log_prior_per_sigma[chosen]) {
+      chosen = k;
+    }
+  }
+  EXPECT_EQ(summary.hyperparameters.sigma, options.sigmas[chosen]);
+  EXPECT_EQ(summary.log_evidence, summary.log_evidence_per_sigma[chosen]);
+  EXPECT_EQ(summary.log_prior, summary.log_prior_per_sigma[chosen]);
+  EXPECT_LE(summary.log_prior, 0.0);
   Matrix mean, var;
   ASSERT_EQ(gp->Predict(Xt, &mean, &var), Status::kOk);
   int inside = 0;
@@ -599,8 +621,11 @@ TEST(EulerLagrangeGP, ASearchFromGivenHyperparametersStaysAtTheirSigma) {
   const EulerLagrangeGPSummary again = FitEulerLagrangeGP(X, Y, from, nullptr);
   ASSERT_EQ(again.status, Status::kOk) << again.message;
   EXPECT_EQ(again.sigmas, std::vector<double>{grid.hyperparameters.sigma});
+  // The objective is the evidence plus the log prior, centred where a search from scratch
+  // centres it: the same objective, so the search starts at the grid's optimum and keeps it.
+  const auto objective = [](const EulerLagrangeGPSummary& s) { return s.log_evidence + s.log_prior; };
   EXPECT_NEAR(again.initial_log_evidence, grid.log_evidence, 1e-6 * std::abs(grid.log_evidence));
-  EXPECT_GE(again.log_evidence, grid.log_evidence - 1e-6 * std::abs(grid.log_evidence));
+  EXPECT_GE(objective(again), objective(grid) - 1e-6 * std::abs(objective(grid)));
   for (int k = 0; k < 2 * n; ++k) {
     EXPECT_NEAR(std::log(again.hyperparameters.part_weights[k]),
                 std::log(grid.hyperparameters.part_weights[k]), 0.05)
@@ -619,9 +644,8 @@ TEST(EulerLagrangeGP, ASearchFromGivenHyperparametersStaysAtTheirSigma) {
   ASSERT_EQ(stays.status, Status::kOk) << stays.message;
   ASSERT_TRUE(gp.has_value());
   EXPECT_EQ(stays.hyperparameters.sigma, other);
-  EXPECT_LT(stays.log_evidence, grid.log_evidence);
-  EXPECT_GE(stays.log_evidence,
-            other_fit.log_evidence - 1e-6 * std::abs(other_fit.log_evidence));
+  EXPECT_LT(objective(stays), objective(grid));
+  EXPECT_GE(objective(stays), objective(other_fit) - 1e-6 * std::abs(objective(other_fit)));
 
   // A start that does not fit the data or has a searched part without weight.
   EulerLagrangeGPHyperparameters bad = grid.hyperparameters;
@@ -633,6 +657,116 @@ TEST(EulerLagrangeGP, ASearchFromGivenHyperparametersStaysAtTheirSigma) {
   bad.part_weights[1] = 0.0;
   from.start = bad;
   EXPECT_THROW(FitEulerLagrangeGP(X, Y, from, nullptr), std::invalid_argument);
+}
+
+// Type-II MAP: the search maximises the evidence plus a prior on the searched log values
+// centred on the data-derived start (EulerLagrangeStart), width options.prior's. Checked against
+// EulerLagrangeGP::LogEvidence (the evidence by another path) and the prior by hand: the result
+// is a stationary point of that sum, and the summary's numbers are its two terms. A very
+// tight prior returns the start. On slow motion (velocities and accelerations a twentieth of
+// the class draw's), where the kinetic energies hardly show, plain type-II maximum likelihood
+// drives a kinetic part's weight far below its start; the prior keeps every value closer.
+TEST(EulerLagrangeGP, TypeIIMapMaximisesTheEvidencePlusThePriorAroundTheDataDerivedStart) {
+  const int n = 3;
+  ClassDraw draw = DrawOfItsClass(23, 90, 0);
+  EulerLagrangeGPOptions options;
+  options.sigmas = {3.0};
+  options.hyperparameter_rows = 0;  // every row: the evidence below is of the same rows
+  options.max_iterations = 400;
+  ASSERT_EQ(options.prior.family, HyperpriorFamily::kGaussian);  // the default
+  const double width = options.prior.block_scale_width;
+  ASSERT_EQ(options.prior.noise_width, width);
+
+  const auto logs = [n](const EulerLagrangeGPHyperparameters& h) {
+    Vector x(3 * n);
+    x << h.part_weights.array().log().matrix(), h.noise_std.array().log().matrix();
+    return x;
+  };
+  const auto with = [n](EulerLagrangeGPHyperparameters h, const Vector& x) {
+    h.part_weights = x.head(2 * n).array().exp().matrix();
+    h.noise_std = x.tail(n).array().exp().matrix();
+    return h;
+  };
+
+  const EulerLagrangeGPSummary map = FitEulerLagrangeGP(draw.X, draw.Y, options, nullptr);
+  ASSERT_EQ(map.status, Status::kOk) << map.message;
+  const Vector centre = logs(EulerLagrangeStart(draw.X, draw.Y, options, 3.0));
+  const Vector x = logs(map.hyperparameters);
+  const auto log_prior = [&](const Vector& v) {
+    return -0.5 * ((v - centre) / width).squaredNorm();
+  };
+  const auto log_posterior = [&](const Vector& v) {
+    return EulerLagrangeGP::LogEvidence(with(map.hyperparameters, v), draw.X, draw.Y) +
+           log_prior(v);
+  };
+  EXPECT_NEAR(map.log_prior, log_prior(x), 1e-9 * (1.0 + std::abs(map.log_prior)));
+  EXPECT_NEAR(map.log_evidence, EulerLagrangeGP::LogEvidence(map.hyperparameters, draw.X, draw.Y),
+              1e-8 * std::abs(map.log_evidence));
+  EXPECT_LT(map.log_prior, -0.01);  // the optimum is not the start: the prior is doing work
+  // Stationary: the central difference of evidence + prior is at the optimiser's tolerance
+  // (1e-4 per torque value), where the prior's own gradient alone is far larger on some value
+  // (a search that ignored the prior would fail here).
+  const double step = 1e-4, tolerance = 1e-4 * static_cast<double>(draw.Y.size());
+  double largest_pull = 0.0;
+  for (int k = 0; k < 3 * n; ++k) {
+    Vector plus = x, minus = x;
+    plus[k] += step;
+    minus[k] -= step;
+    const double g = (log_posterior(plus) - log_posterior(minus)) / (2.0 * step);
+    const double pull = std::abs(x[k] - centre[k]) / (width * width);  // the prior's gradient
+    largest_pull = std::max(largest_pull, pull);
+    EXPECT_LT(std::abs(g), tolerance) << "value " << k << " at its optimum (prior's gradient "
+                                      << pull << ")";
+  }
+  EXPECT_GT(largest_pull, 10.0 * tolerance);
+
+  // A prior of width 1e-4 holds every value at the start.
+  EulerLagrangeGPOptions tight = options;
+  tight.prior.block_scale_width = tight.prior.noise_width = 1e-4;
+  const EulerLagrangeGPSummary held = FitEulerLagrangeGP(draw.X, draw.Y, tight, nullptr);
+  ASSERT_EQ(held.status, Status::kOk) << held.message;
+  EXPECT_LT((logs(held.hyperparameters) - centre).cwiseAbs().maxCoeff(), 1e-3);
+
+  // Slow motion: the kinetic parts hardly excited.
+  ClassDraw slow = DrawOfItsClass(23, 90, 0);
+  const LagrangianRegressorMap twin(n);
+  slow.X.middleCols(n, 2 * n) *= 0.05;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal;
+  Vector w(2 * n);
+  w << 0.5, 2.0, 1.0, 3.0, 1.0, 0.5;
+  const Vector theta = Vector::NullaryExpr(twin.dim(), [&]() { return normal(rng); })
+                           .cwiseProduct(twin.KernelPriorVariance(3.0, w).cwiseSqrt());
+  slow.truth = TwinTorques(twin, theta, slow.X);
+  const double noise = 0.05 * std::sqrt(slow.truth.squaredNorm() / slow.truth.size());
+  slow.Y = slow.truth + Matrix::NullaryExpr(slow.X.rows(), n, [&]() { return noise * normal(rng); });
+  EulerLagrangeGPOptions plain = options;
+  plain.prior.family = HyperpriorFamily::kNone;
+  const EulerLagrangeGPSummary ml = FitEulerLagrangeGP(slow.X, slow.Y, plain, nullptr);
+  const EulerLagrangeGPSummary slow_map = FitEulerLagrangeGP(slow.X, slow.Y, options, nullptr);
+  ASSERT_EQ(ml.status, Status::kOk) << ml.message;
+  ASSERT_EQ(slow_map.status, Status::kOk) << slow_map.message;
+  EXPECT_EQ(ml.log_prior, 0.0);
+  const Vector slow_centre = logs(EulerLagrangeStart(slow.X, slow.Y, options, 3.0));
+  const Vector d_ml = (logs(ml.hyperparameters) - slow_centre).head(n);  // kinetic parts
+  const Vector d_map = (logs(slow_map.hyperparameters) - slow_centre).head(n);
+  std::printf("slow motion, kinetic log weights from their start: ML-II %s; MAP %s\n",
+              FormatRow(d_ml).c_str(), FormatRow(d_map).c_str());
+  EXPECT_LT(d_ml.minCoeff(), -4.0 * width);
+  EXPECT_GT(d_map.minCoeff(), d_ml.minCoeff() + width);
+  EXPECT_LT(d_map.cwiseAbs().maxCoeff(), d_ml.cwiseAbs().maxCoeff());
+  // And the MAP model's evidence is lower than ML-II's (it maximises another objective).
+  EXPECT_LE(slow_map.log_evidence, ml.log_evidence + 1e-6 * std::abs(ml.log_evidence));
+
+  // A prior that is not one is refused by name.
+  EulerLagrangeGPOptions bad = options;
+  bad.prior.noise_width = 0.0;
+  try {
+    FitEulerLagrangeGP(draw.X, draw.Y, bad, nullptr);
+    ADD_FAILURE() << "a zero width was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("prior"), std::string::npos) << e.what();
+  }
 }
 
 TEST(EulerLagrangeGP, RejectsBadInputWithAClearError) {

@@ -394,6 +394,7 @@ bool RegressorByEvidence(const Matrix& X, const Matrix& Y, const Matrix& Yr, Fit
 // model, the evidence rows capped at max_euler_lagrange_evidence_values / N.
 EulerLagrangeGPOptions EulerLagrangeOptions(const FitOptions& options, const RobotModel& model) {
   EulerLagrangeGPOptions o = options.euler_lagrange;
+  o.prior = options.evidence.prior;
   o.friction = model.spec().friction;
   o.coulomb_width = model.options().friction_width;
   o.effects = model.effect_map();
@@ -433,6 +434,7 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   }
   *h = ToHyperparameters(s.hyperparameters);
   summary.final_negative_log_evidence = -s.log_evidence;
+  summary.final_negative_log_prior = -s.log_prior;
   summary.initial_negative_log_evidence = -s.initial_log_evidence;
   summary.iterations = 0;
   summary.num_evaluations = 0;
@@ -440,18 +442,24 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
     summary.iterations += s.iterations_per_sigma[k];
     summary.num_evaluations += s.evaluations_per_sigma[k];
   }
+  const char* map = o.prior.family != HyperpriorFamily::kNone
+                        ? " with a prior on the log hyper-parameters (MAP)"
+                        : "";
   summary.method_description =
-      o.start ? Format("type-II maximum likelihood over the part weights and each joint's noise "
+      o.start ? Format("type-II maximum likelihood%s over the part weights and each joint's noise "
                        "from the given hyper-parameters, at their sigma = %s",
-                       Number(s.hyperparameters.sigma).c_str())
-              : Format("type-II maximum likelihood over the part weights and each joint's "
+                       map, Number(s.hyperparameters.sigma).c_str())
+              : Format("type-II maximum likelihood%s over the part weights and each joint's "
                        "noise, best of %d sigmas (sigma = %s)",
-                       static_cast<int>(s.sigmas.size()), Number(s.hyperparameters.sigma).c_str());
+                       map, static_cast<int>(s.sigmas.size()),
+                       Number(s.hyperparameters.sigma).c_str());
   std::string per_sigma;
   for (size_t k = 0; k < s.sigmas.size(); ++k) {
     per_sigma += (per_sigma.empty() ? "" : ", ") + Number(s.sigmas[k]) + ": " +
                  (std::isfinite(s.log_evidence_per_sigma[k])
-                      ? Number(s.log_evidence_per_sigma[k]) + " nats"
+                      ? Number(s.log_evidence_per_sigma[k]) + " nats" +
+                            (*map != '\0' ? ", log prior " + Number(s.log_prior_per_sigma[k])
+                                           : std::string())
                       : std::string("failed")) +
                  Format(" (%d iterations%s)", s.iterations_per_sigma[k],
                         s.warm_start_per_sigma[k] ? ", from the previous sigma's optimum" : "");

@@ -23,10 +23,11 @@ double Rms(const ConstMatrixRef& A, Eigen::Index col) {
   return std::sqrt(A.col(col).squaredNorm() / static_cast<double>(A.rows()));
 }
 
-// -log evidence for Ceres.
-class NegativeLogEvidence : public ceres::FirstOrderFunction {
+// -log evidence - log prior for Ceres.
+class NegativeLogPosterior : public ceres::FirstOrderFunction {
  public:
-  explicit NegativeLogEvidence(const EulerLagrangeEvidence& evidence) : evidence_(evidence) {}
+  NegativeLogPosterior(const EulerLagrangeEvidence& evidence, const LogHyperprior& prior)
+      : evidence_(evidence), prior_(prior) {}
   int NumParameters() const override { return evidence_.num_parameters(); }
   bool Evaluate(const double* p, double* cost, double* gradient) const override {
     const double value = evidence_.Evaluate(p, gradient);
@@ -35,12 +36,27 @@ class NegativeLogEvidence : public ceres::FirstOrderFunction {
     if (gradient != nullptr) {
       for (int k = 0; k < NumParameters(); ++k) gradient[k] = -gradient[k];
     }
-    return true;
+    *cost += prior_.NegativeLogDensity(Eigen::Map<const Vector>(p, NumParameters()), gradient);
+    return std::isfinite(*cost);
   }
 
  private:
   const EulerLagrangeEvidence& evidence_;
+  const LogHyperprior& prior_;
 };
+
+// The prior of options.prior centred on the data-derived start (log part weights, then log
+// noise levels), or none.
+LogHyperprior Prior(const HyperpriorOptions& options, const std::vector<double>& centre,
+                    size_t num_parts) {
+  if (options.family == HyperpriorFamily::kNone) return LogHyperprior();
+  Vector c = Eigen::Map<const Vector>(centre.data(), static_cast<Eigen::Index>(centre.size()));
+  Vector w(c.size());
+  for (Eigen::Index k = 0; k < c.size(); ++k) {
+    w[k] = static_cast<size_t>(k) < num_parts ? options.block_scale_width : options.noise_width;
+  }
+  return LogHyperprior(options.family, std::move(c), std::move(w), options.degrees_of_freedom);
+}
 
 // The base hyper-parameters at sigma: zero part weights, unit noise, and friction's prior std
 // the joint's RMS torque, its velocity scale the joint's RMS velocity (data-derived scales).
@@ -162,6 +178,8 @@ void EulerLagrangeGPOptions::Validate() const {
   Require(inducing_states >= 0, "options: inducing_states must be >= 0");
   Require(max_iterations >= 1, "options: max_iterations must be >= 1");
   Require(num_threads >= 1, "options: num_threads must be >= 1");
+  std::string prior_error;
+  Require(prior.IsValid(&prior_error), "options: prior: " + prior_error);
   if (start) {
     Require(start->sigma > 0.0 && std::isfinite(start->sigma),
             "options: start's sigma must be finite and > 0");
@@ -213,12 +231,19 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
   for (double sigma : sigmas) {
     summary.sigmas.push_back(sigma);
     summary.log_evidence_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
+    summary.log_prior_per_sigma.push_back(std::numeric_limits<double>::quiet_NaN());
     summary.iterations_per_sigma.push_back(0);
     summary.warm_start_per_sigma.push_back(false);
     summary.evaluations_per_sigma.push_back(0);
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
+    const LogHyperprior prior = Prior(options.prior, p, P);
+    auto objective = [&](const std::vector<double>& x) {
+      return evidence.Evaluate(x.data(), nullptr) -
+             prior.NegativeLogDensity(Eigen::Map<const Vector>(x.data(),
+                                                               static_cast<Eigen::Index>(x.size())));
+    };
     if (options.start) {
       for (size_t k = 0; k < P; ++k) p[k] = std::log(options.start->part_weights[searched[k]]);
       for (int j = 0; j < n; ++j) p[P + static_cast<size_t>(j)] = std::log(options.start->noise_std[j]);
@@ -226,12 +251,14 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     if (!carried.empty()) {
       std::vector<double> warm = carried;
       for (size_t k = 0; k < P; ++k) warm[k] -= LogMeanPartVariance(evidence, k);
-      if (evidence.Evaluate(warm.data(), nullptr) > evidence.Evaluate(p.data(), nullptr)) {
+      if (objective(warm) > objective(p)) {
         p = std::move(warm);
         summary.warm_start_per_sigma.back() = true;
       }
     }
-    ceres::GradientProblem problem(new NegativeLogEvidence(evidence));
+    const double start_penalty = prior.NegativeLogDensity(
+        Eigen::Map<const Vector>(p.data(), static_cast<Eigen::Index>(p.size())));
+    ceres::GradientProblem problem(new NegativeLogPosterior(evidence, prior));
     ceres::GradientProblemSolver::Options o;
     o.max_num_iterations = options.max_iterations;
     o.logging_type = ceres::SILENT;
@@ -240,15 +267,20 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.iterations_per_sigma.back() = static_cast<int>(s.iterations.size());
     summary.evaluations_per_sigma.back() = s.num_cost_evaluations + s.num_gradient_evaluations;
     if (summary.sigmas.size() == 1 && std::isfinite(s.initial_cost)) {
-      summary.initial_log_evidence = -s.initial_cost;
+      summary.initial_log_evidence = -s.initial_cost + start_penalty;
     }
     if (!s.IsSolutionUsable() || !std::isfinite(s.final_cost)) continue;
-    summary.log_evidence_per_sigma.back() = -s.final_cost;
+    const double log_prior = -prior.NegativeLogDensity(
+        Eigen::Map<const Vector>(p.data(), static_cast<Eigen::Index>(p.size())));
+    summary.log_evidence_per_sigma.back() = -s.final_cost - log_prior;
+    summary.log_prior_per_sigma.back() = log_prior;
     carried = p;
     for (size_t k = 0; k < P; ++k) carried[k] += LogMeanPartVariance(evidence, k);
     if (-s.final_cost > best) {
       best = -s.final_cost;
       best_h = WithParameters(base, searched, p);
+      summary.log_evidence = -s.final_cost - log_prior;
+      summary.log_prior = log_prior;
     }
   }
   auto finish = [&](Status status, std::string message) {
@@ -263,7 +295,6 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
                   "type-II maximum likelihood found no usable hyper-parameters at any sigma");
   }
   summary.hyperparameters = best_h;
-  summary.log_evidence = best;
   if (gp == nullptr) return finish(Status::kOk, "");
   EulerLagrangeGP model(best_h, options.effects);
   const Status status =

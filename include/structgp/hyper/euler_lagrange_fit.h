@@ -15,6 +15,7 @@
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
+#include "structgp/hyper/hyperprior.h"
 #include "structgp/model/euler_lagrange_gp.h"
 
 namespace structgp {
@@ -44,6 +45,16 @@ struct EulerLagrangeGPOptions {
   /// Workers of the DTC's accumulation over the training states (EulerLagrangeGP::Condition).
   int num_threads = 1;
   int max_iterations = 80;
+  /// The prior on the searched log values (type-II MAP, as FitModel's other searches): each
+  /// searched part's log weight centred on its data-derived start at each sigma (the torques'
+  /// mean square shared by the parts) with width prior.block_scale_width, each joint's log
+  /// noise on 10% of its RMS torque with width prior.noise_width. The sigma whose evidence plus
+  /// log prior is largest wins. Without it (kNone) a part that the evidence rows hardly excite
+  /// (a light link's kinetic energy on a slow log) can be switched off (its weight driven to
+  /// e^-15), and predictions of motions that need it are then confident and wrong. With a start
+  /// the centres stay the data-derived ones, so a refit from a model maximises the same
+  /// objective as a fit from scratch. FitModel passes FitOptions::evidence.prior.
+  HyperpriorOptions prior;
   /// Start the search from these hyper-parameters instead of the grid's data-derived starts
   /// (a model refitted with an effect added: the diagnosis loop passes the model's own): at
   /// their sigma alone (`sigmas` is then not used), from their part weights and noise levels,
@@ -60,7 +71,9 @@ struct EulerLagrangeGPSummary {
   std::string message;  // why, when status is not kOk
   EulerLagrangeGPHyperparameters hyperparameters;
   double log_evidence = 0.0;  // of the hyper-parameter rows, at the chosen hyper-parameters
+  double log_prior = 0.0;     // log p(x) of the prior there (0 at its centre; 0 without one)
   std::vector<double> sigmas, log_evidence_per_sigma;  // NaN where the search was not usable
+  std::vector<double> log_prior_per_sigma;             // at each sigma's optimum
   /// LBFGS iterations at each sigma, and whether its search started from the previous sigma's
   /// optimum (the start with the larger evidence of the two: see FitEulerLagrangeGP).
   std::vector<int> iterations_per_sigma;
@@ -83,7 +96,8 @@ EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const
                                                   const EulerLagrangeGPOptions& options,
                                                   double sigma);
 
-/// The sigmas are searched in increasing order. At each one the search starts from the
+/// The sigmas are searched in increasing order (options.prior: evidence plus log prior
+/// maximised, and compared between sigmas). At each one the search starts from the
 /// data-derived start (EulerLagrangeStart) or from the optimum of the sigma before it (each
 /// part's weight carried over at the same mean prior variance, the noise levels as they were),
 /// whichever has the larger evidence: neighbouring sigmas have neighbouring optima, so the
