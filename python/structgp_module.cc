@@ -585,6 +585,9 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("folds_improved", &Suggestion::folds_improved)
       .def_readonly("fold_rms_ratio", &Suggestion::fold_rms_ratio)
       .def_readonly("selection", &Suggestion::selection)
+      .def_readonly("passed_by", &Suggestion::passed_by,
+                    "'evidence', or 'held_out' (refused by the evidence on the log, passed on "
+                    "its held-out fall)")
       .def_readonly("scope", &Suggestion::scope)
       .def_readonly("params", &Suggestion::params)
       .def_readonly("spec", &Suggestion::spec, "the text to add to the effects, e.g. 'coulomb@2'")

@@ -8,6 +8,7 @@
 #include <random>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -256,6 +257,70 @@ TEST(Calibration, RefusedCandidatesNameTheBarThatStoppedThem) {
   none.max_refused = -1;
   EXPECT_THROW(Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t, none),
                std::invalid_argument);
+}
+
+// The held-out route (DiagnosisOptions::held_out_may_replace_evidence): an effect whose
+// held-out RMS falls by held_out_fall_alone in all folds but at most one passes without the
+// evidence bars, for the effects a flexible model's refit absorbs in sample. With the evidence
+// bar out of reach (1e9 nats) a Coulomb step is still named on its joint alone, passed by its
+// held-out fall; without the route nothing is, refused by the evidence; with the default bar the
+// route changes nothing (the same suggestions, each passed by the evidence); and on a log
+// without an effect the route names nothing.
+TEST(Calibration, AHeldOutFallStandsInForTheEvidenceARefitAbsorbs) {
+  auto coulomb = Clean(HiddenEffect::kCoulomb, 2, 0.1, 20.0);
+  AddWhiteNoise(0.01, 3, &coulomb.train);
+  AddWhiteNoise(0.01, 4, &coulomb.test);
+  const RobotModel pol = Fit(ParseModelSpec("pol"), coulomb.train);
+  DiagnosisOptions options = WithTraining(coulomb.train);
+  const auto diagnose = [&](const DiagnosisOptions& o) {
+    return Diagnose(pol, coulomb.test.X, coulomb.test.Y, coulomb.test.t, o);
+  };
+  const auto specs = [](const Diagnosis& d) {
+    std::vector<std::string> out;
+    for (const Suggestion& s : d.suggestions) out.push_back(s.spec);
+    return out;
+  };
+  ASSERT_TRUE(options.held_out_may_replace_evidence);  // the default
+  const Diagnosis with_route = diagnose(options);
+  DiagnosisOptions no_route = options;
+  no_route.held_out_may_replace_evidence = false;
+  ASSERT_FALSE(with_route.suggestions.empty());
+  EXPECT_EQ(specs(with_route), specs(diagnose(no_route)));
+  for (const Suggestion& s : with_route.suggestions) EXPECT_EQ(s.passed_by, "evidence") << s.spec;
+
+  options.min_log_evidence_gain = no_route.min_log_evidence_gain = 1e9;
+  const Diagnosis held_out = diagnose(options);
+  ASSERT_FALSE(held_out.suggestions.empty());
+  for (const Suggestion& s : held_out.suggestions) {
+    SCOPED_TRACE(s.spec);
+    EXPECT_EQ(s.joint, 2);
+    EXPECT_EQ(s.passed_by, "held_out");
+    EXPECT_LE(s.score_uncorrected, options.min_log_evidence_gain);
+    EXPECT_GE(s.score_uncorrected, 0.0);
+    EXPECT_LE(s.fold_rms_ratio, 1.0 - options.held_out_fall_alone);
+    EXPECT_GE(s.folds_improved, s.confirmation_folds - 1);
+  }
+  const std::string front = held_out.suggestions.front().effect;
+  EXPECT_TRUE(front == "coulomb" || front == "stribeck") << front;
+  const nlohmann::json j = nlohmann::json::parse(ToJson(held_out));
+  EXPECT_EQ(j["suggestions"][0]["passed_by"].get<std::string>(), "held_out");
+  const std::string text = DiagnosisReport(held_out, ParseModelSpec("pol"), options);
+  EXPECT_NE(text.find("passed on its held-out fall"), std::string::npos) << text;
+
+  const Diagnosis without = diagnose(no_route);
+  EXPECT_TRUE(without.suggestions.empty());
+  ASSERT_FALSE(without.refused.empty());
+  EXPECT_EQ(without.refused.front().bar, "evidence");
+
+  auto clean = Clean(HiddenEffect::kNone, 2, 0.1, 20.0);
+  AddWhiteNoise(0.01, 3, &clean.train);
+  AddWhiteNoise(0.01, 4, &clean.test);
+  const RobotModel clean_pol = Fit(ParseModelSpec("pol"), clean.train);
+  DiagnosisOptions clean_options = WithTraining(clean.train);
+  clean_options.min_log_evidence_gain = 1e9;
+  const Diagnosis nothing =
+      Diagnose(clean_pol, clean.test.X, clean.test.Y, clean.test.t, clean_options);
+  EXPECT_TRUE(nothing.suggestions.empty()) << ToJson(nothing);
 }
 
 // With at least `folds` trajectories (t restarting at each), a suggestion is confirmed by

@@ -870,8 +870,13 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       refusal->calibrated = calibrated;
       return false;
     };
+    // The held-out route: a fall of held_out_fall_alone in all folds but at most one, and not
+    // against the evidence on the log, stands in for the evidence bars.
+    const bool held_out_route = options.held_out_may_replace_evidence && gain_white >= 0.0 &&
+                                a.fold_ratio <= 1.0 - options.held_out_fall_alone &&
+                                a.folds_improved >= num_folds - 1;
     // Cheap bars first (the calibration below costs O(m K) per column).
-    if (!(gain_white > options.min_log_evidence_gain)) {
+    if (!held_out_route && !(gain_white > options.min_log_evidence_gain)) {
       return refuse("evidence",
                     internal::Format("evidence %.3g nats <= %.3g", gain_white,
                                      options.min_log_evidence_gain),
@@ -914,21 +919,25 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->p_value = p;
     s->adjusted_p_value = adjust(p, round);
     s->z = std::sqrt(statistic);
-    if (!(s->score > options.min_log_evidence_gain)) {
-      return refuse("calibrated_evidence",
-                    internal::Format("calibrated evidence %.3g nats <= %.3g (inflation %.3g)",
-                                     s->score, options.min_log_evidence_gain, inflation),
-                    true);
-    }
-    if (!(s->z >= options.min_effect_z)) {
-      return refuse("z", internal::Format("z %.3g < %.3g", s->z, options.min_effect_z), true);
-    }
-    if (!(p <= threshold(round))) {
+    const bool evidence_passes = gain_white > options.min_log_evidence_gain &&
+                                 s->score > options.min_log_evidence_gain &&
+                                 s->z >= options.min_effect_z && p <= threshold(round);
+    if (!evidence_passes && !held_out_route) {
+      if (!(s->score > options.min_log_evidence_gain)) {
+        return refuse("calibrated_evidence",
+                      internal::Format("calibrated evidence %.3g nats <= %.3g (inflation %.3g)",
+                                       s->score, options.min_log_evidence_gain, inflation),
+                      true);
+      }
+      if (!(s->z >= options.min_effect_z)) {
+        return refuse("z", internal::Format("z %.3g < %.3g", s->z, options.min_effect_z), true);
+      }
       return refuse("significance",
                     internal::Format("p %.3g > %.3g (adjusted p %.3g)", p, threshold(round),
                                      s->adjusted_p_value),
                     true);
     }
+    s->passed_by = evidence_passes ? "evidence" : "held_out";
     record_outcome(b, a, j, s, true);
     return true;
   };
@@ -1315,6 +1324,7 @@ nlohmann::ordered_json SuggestionJson(const Suggestion& s, bool calibrated) {
                         {"rms_before", s.rms_before},
                         {"rms_after", s.rms_after}};
   js["selection"] = s.selection;
+  js["passed_by"] = s.passed_by;
   js["scope"] = s.scope;
   js["params"] = nlohmann::ordered_json::object();
   for (const auto& [k, v] : s.params) js["params"][k] = v;

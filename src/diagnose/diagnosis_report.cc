@@ -115,7 +115,10 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
         s.joint, DescribeEffect(s).c_str(),
         s.scope == "log" ? ", in this log only (not in the training data: retrain with this log)" : "", s.score, s.score_uncorrected,
         (s.adjusted_p_value > 0 ? Format("%.2g", s.adjusted_p_value) : std::string("< 1e-300")).c_str(),
-        s.effect_to_noise, s.selection == "joint" ? "; chosen with the joint's other friction" : "",
+        s.effect_to_noise,
+        (std::string(s.selection == "joint" ? "; chosen with the joint's other friction" : "") +
+         (s.passed_by == "held_out" ? "; passed on its held-out fall, not on the evidence" : ""))
+            .c_str(),
         s.residual_rms_before, s.residual_rms_after, unseen.c_str(), s.folds_improved,
         s.fold_rms_ratio, s.rms_before, s.rms_after,
         shell_word((existing.empty() ? "" : existing + ",") + s.spec).c_str());

@@ -735,6 +735,7 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
              (confirmation.empty() ? std::string() : below(confirmation)) + "</td>";
     *html += "<td class=\"text\">" + Escape(s.selection) +
              (s.scope == "log" ? below("in this log only") : std::string()) +
+             (s.passed_by == "held_out" ? below("on its held-out fall") : std::string()) +
              "</td><td class=\"text\">" +
              Parameters(s.params) + "</td><td class=\"text\"><code>" + Escape(s.spec) +
              "</code></td></tr>\n";
