@@ -870,11 +870,11 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       refusal->calibrated = calibrated;
       return false;
     };
-    // The held-out route: a fall of held_out_fall_alone in all folds but at most one, and not
-    // against the evidence on the log, stands in for the evidence bars.
+    // A large held-out fall stands in for the effect-size bars; in all folds but at most one,
+    // and not against the evidence on the log, for the evidence bars too (the held-out route).
+    const bool large_held_out = a.fold_ratio <= 1.0 - options.held_out_fall_alone;
     const bool held_out_route = options.held_out_may_replace_evidence && gain_white >= 0.0 &&
-                                a.fold_ratio <= 1.0 - options.held_out_fall_alone &&
-                                a.folds_improved >= num_folds - 1;
+                                large_held_out && a.folds_improved >= num_folds - 1;
     // Cheap bars first (the calibration below costs O(m K) per column).
     if (!held_out_route && !(gain_white > options.min_log_evidence_gain)) {
       return refuse("evidence",
@@ -891,7 +891,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                     false);
     }
     // The effect's size on this log; or, when a refit absorbs it in sample, out of sample.
-    const bool large_held_out = a.fold_ratio <= 1.0 - options.held_out_fall_alone;
     if (!large_held_out) {
       if (!(res_after <= (1.0 - options.min_residual_fall) * res_before)) {
         return refuse("residual_fall",

@@ -28,6 +28,8 @@ using internal::Format;
 using internal::Table;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// In the method description of a search with a prior (every form).
+constexpr char kMapPhrase[] = " with a prior on the log hyper-parameters (MAP)";
 
 std::string Number(double value) { return Format("%.6g", value); }
 
@@ -108,7 +110,7 @@ class Fit {
     search_message_ = chosen == s.best_start ? s.message : ToString(run.termination);
     const bool map = s.final_negative_log_prior != 0.0 || run.negative_log_prior != 0.0;
     std::string how = Format("type-II maximum likelihood%s (%s, %d iterations",
-                             map ? " with a prior on the log hyper-parameters (MAP)" : "",
+                             map ? kMapPhrase : "",
                              ToString(run.termination), run.iterations);
     if (s.starts.size() > 1) {
       how += Format("; start %d of %d", chosen + 1, static_cast<int>(s.starts.size()));
@@ -442,9 +444,8 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
     summary.iterations += s.iterations_per_sigma[k];
     summary.num_evaluations += s.evaluations_per_sigma[k];
   }
-  const char* map = o.prior.family != HyperpriorFamily::kNone
-                        ? " with a prior on the log hyper-parameters (MAP)"
-                        : "";
+  const bool with_prior = o.prior.family != HyperpriorFamily::kNone;
+  const char* map = with_prior ? kMapPhrase : "";
   summary.method_description =
       o.start ? Format("type-II maximum likelihood%s over the part weights and each joint's noise "
                        "from the given hyper-parameters, at their sigma = %s",
@@ -458,8 +459,8 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
     per_sigma += (per_sigma.empty() ? "" : ", ") + Number(s.sigmas[k]) + ": " +
                  (std::isfinite(s.log_evidence_per_sigma[k])
                       ? Number(s.log_evidence_per_sigma[k]) + " nats" +
-                            (*map != '\0' ? ", log prior " + Number(s.log_prior_per_sigma[k])
-                                           : std::string())
+                            (with_prior ? ", log prior " + Number(s.log_prior_per_sigma[k])
+                                        : std::string())
                       : std::string("failed")) +
                  Format(" (%d iterations%s)", s.iterations_per_sigma[k],
                         s.warm_start_per_sigma[k] ? ", from the previous sigma's optimum" : "");

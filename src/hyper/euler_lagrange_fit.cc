@@ -239,10 +239,12 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
     const LogHyperprior prior = Prior(options.prior, p, P);
+    auto penalty = [&](const std::vector<double>& x) {  // -log p(x)
+      return prior.NegativeLogDensity(
+          Eigen::Map<const Vector>(x.data(), static_cast<Eigen::Index>(x.size())));
+    };
     auto objective = [&](const std::vector<double>& x) {
-      return evidence.Evaluate(x.data(), nullptr) -
-             prior.NegativeLogDensity(Eigen::Map<const Vector>(x.data(),
-                                                               static_cast<Eigen::Index>(x.size())));
+      return evidence.Evaluate(x.data(), nullptr) - penalty(x);
     };
     if (options.start) {
       for (size_t k = 0; k < P; ++k) p[k] = std::log(options.start->part_weights[searched[k]]);
@@ -256,8 +258,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
         summary.warm_start_per_sigma.back() = true;
       }
     }
-    const double start_penalty = prior.NegativeLogDensity(
-        Eigen::Map<const Vector>(p.data(), static_cast<Eigen::Index>(p.size())));
+    const double start_penalty = penalty(p);
     ceres::GradientProblem problem(new NegativeLogPosterior(evidence, prior));
     ceres::GradientProblemSolver::Options o;
     o.max_num_iterations = options.max_iterations;
@@ -270,8 +271,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
       summary.initial_log_evidence = -s.initial_cost + start_penalty;
     }
     if (!s.IsSolutionUsable() || !std::isfinite(s.final_cost)) continue;
-    const double log_prior = -prior.NegativeLogDensity(
-        Eigen::Map<const Vector>(p.data(), static_cast<Eigen::Index>(p.size())));
+    const double log_prior = -penalty(p);
     summary.log_evidence_per_sigma.back() = -s.final_cost - log_prior;
     summary.log_prior_per_sigma.back() = log_prior;
     carried = p;
