@@ -7,7 +7,7 @@
 //                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--lagk-inducing=0]
 //                  [--lagk-inducing-rule=cover|stride]
 //                  [--lagk-sigmas=1,3,10,30,100] [--prior=gaussian|student_t|none]
-//                  [--out=FILE.csv]
+//                  [--components] [--out=FILE.csv]
 //                  [--quick] [--check]
 //
 // Per robot and case: a slow training log (--train-vias via points in --train-seconds, seed 1,
@@ -38,12 +38,14 @@
 //
 // Columns: test RMS / noise per joint (the mean over the test logs; 1.0 is a perfect model),
 // the largest of them, the mean nMSE, the 2-sigma coverage of the noisy predictive band (worst
-// joint), training rows and fit time.
+// joint), training rows and fit time. With --components, a second table splits each model's
+// error into the gravity, inertial and velocity terms (ComponentRatios).
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -104,6 +106,7 @@ struct Flags {
   std::string out;
   bool quick = false;
   bool check = false;
+  bool components = false;
 };
 
 sim::Robot MakeRobot(const std::string& name) {
@@ -123,6 +126,7 @@ RigidBodyChain ChainOf(const sim::Robot& robot, bool with_armature) {
 struct Case {
   sim::Dataset train;
   std::vector<sim::Dataset> tests;
+  std::vector<sim::TorqueComponents> test_components;  // the noise-free terms of each test log
   Vector noise;   // per joint, N m
   bool friction = false;
   std::shared_ptr<const RigidBodyChain> truth;  // the simulated chain (armature, payload)
@@ -177,8 +181,9 @@ Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& 
   }
   for (int k = 0; k < f.tests; ++k) {
     const auto seed = static_cast<std::uint64_t>(2 + k);
-    c.tests.push_back(simulate(
-        sim::ViaPoints(N, kTestSeconds, kDt, kVias, kFastSpeed, kRange, seed), 2001 + seed));
+    const sim::Trajectory fast = sim::ViaPoints(N, kTestSeconds, kDt, kVias, kFastSpeed, kRange, seed);
+    c.tests.push_back(simulate(fast, 2001 + seed));
+    c.test_components.push_back(sim::SimulateComponents(robot, fast, options));
   }
   return c;
 }
@@ -202,7 +207,56 @@ struct Row {
   int consistent_links = 0;       // of N
   int directions = 0;             // identified directions (rbd)
   double last_mass_change = 0;    // identified minus URDF mass of the last link, kg
+  // --components: test RMS error / noise per joint (columns) of the gravity, inertial and
+  // velocity (Coriolis + friction) terms (rows), the mean over the test logs; empty otherwise.
+  Matrix component_ratio;
+  Matrix component_size;  // the true terms' RMS / noise, the same layout
 };
+
+constexpr const char* kComponentNames[] = {"gravity", "inertial", "velocity"};
+
+// The model's terms read off its mean at modified states (exact for any model whose torque is
+// M(q) qdd + h(q, qd) with h(q, 0) = G(q), lagk, pol and rbd among them): gravity at
+// qd = qdd = 0, inertial at qd = 0 less gravity, velocity at qdd = 0 less gravity; against the
+// simulation's own terms of each test log.
+Matrix ComponentRatios(const Case& c, const std::function<Matrix(const Matrix&)>& mean) {
+  const int N = static_cast<int>(c.noise.size());
+  Matrix ratio = Matrix::Zero(3, N);
+  for (size_t k = 0; k < c.tests.size(); ++k) {
+    const Matrix& X = c.tests[k].X;
+    Matrix X0 = X, Xa = X, Xv = X;
+    X0.middleCols(N, 2 * N).setZero();
+    Xa.middleCols(N, N).setZero();
+    Xv.middleCols(2 * N, N).setZero();
+    const Matrix g = mean(X0);
+    const sim::TorqueComponents& truth = c.test_components[k];
+    const Matrix err[3] = {g - truth.gravity, mean(Xa) - g - truth.inertial,
+                           mean(Xv) - g - truth.coriolis - truth.friction};
+    for (int r = 0; r < 3; ++r) {
+      for (int j = 0; j < N; ++j) {
+        ratio(r, j) += std::sqrt(err[r].col(j).squaredNorm() / static_cast<double>(X.rows())) /
+                       c.noise[j] / static_cast<double>(c.tests.size());
+      }
+    }
+  }
+  return ratio;
+}
+
+// The true terms' RMS / noise per joint, the same layout.
+Matrix ComponentSizes(const Case& c) {
+  const int N = static_cast<int>(c.noise.size());
+  Matrix size = Matrix::Zero(3, N);
+  for (const sim::TorqueComponents& t : c.test_components) {
+    const Matrix terms[3] = {t.gravity, t.inertial, t.coriolis + t.friction};
+    for (int r = 0; r < 3; ++r) {
+      for (int j = 0; j < N; ++j) {
+        size(r, j) += std::sqrt(terms[r].col(j).squaredNorm() / static_cast<double>(t.gravity.rows())) /
+                      c.noise[j] / static_cast<double>(c.test_components.size());
+      }
+    }
+  }
+  return size;
+}
 
 // The identification columns of a row from the rigid-body parameters pi_hat.
 void Identification(const Case& c, const RigidBodyChain& urdf, const Vector& pi_hat, Row* row) {
@@ -379,8 +433,12 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
 
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
              const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows,
-             const EulerLagrangeGPOptions& lagk_options) {
-  Row row{robot_name, case_name, name, {}, 0, {}, static_cast<int>(c.train.X.rows()), 0, ""};
+             const EulerLagrangeGPOptions& lagk_options, bool components) {
+  Row row;
+  row.robot = robot_name;
+  row.kase = case_name;
+  row.model = name;
+  row.rows = static_cast<int>(c.train.X.rows());
   const auto start = std::chrono::steady_clock::now();
   std::vector<Prediction> predictions;
   if (name == "lagk" || name == "lagk+fri" || name == "lagk/link" || name == "lagk+fri/link") {
@@ -430,12 +488,23 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
       }
       predictions.push_back(p);
     }
+    if (components) {
+      row.component_ratio = ComponentRatios(c, [&gp](const Matrix& X) {
+        Matrix out;
+        if (!IsOk(gp->Predict(X, &out))) throw std::runtime_error("lagk: bad states");
+        return out;
+      });
+    }
   } else if (name == "reference") {
     Reference reference(*c.truth, c.friction, c.noise);
     reference.Fit(c.train.X, c.train.Y);
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (const auto& t : c.tests) predictions.push_back(reference.Predict(t.X));
     Identification(c, *c.truth, reference.theta().head(c.truth->num_parameters()), &row);
+    if (components) {
+      row.component_ratio =
+          ComponentRatios(c, [&](const Matrix& X) { return reference.Predict(X).mean; });
+    }
   } else {
     std::string spec_text = name;
     bool off = false;
@@ -491,6 +560,10 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     row.note = fitted.summary.method_description;
     row.rows = fitted.summary.model_rows;
     for (const auto& t : c.tests) predictions.push_back(PredictModel(fitted.model, t.X));
+    if (components) {
+      row.component_ratio =
+          ComponentRatios(c, [&](const Matrix& X) { return PredictModel(fitted.model, X).mean; });
+    }
     const RegressorGP* gp = fitted.model.gp().regressor();
     if (gp != nullptr && spec.base == BaseModel::kRbd) {
       Identification(c, *options.model.rigid_body, gp->parameters().head(c.truth->num_parameters()),
@@ -534,7 +607,8 @@ int Run(const Flags& flags, int argc, char** argv) {
       const Case c = MakeCase(robot, case_name, f);
       for (const std::string& model : f.models) {
         Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows,
-                           f.lagk_hyper_rows, lagk_options);
+                           f.lagk_hyper_rows, lagk_options, f.components);
+        if (f.components) row.component_size = ComponentSizes(c);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
                     row.kase.c_str(), row.model.c_str(),
                     row.ratio.size() ? Join(row.ratio, "%.3g").c_str() : "-",
@@ -544,6 +618,31 @@ int Run(const Flags& flags, int argc, char** argv) {
                     row.rows, row.seconds, row.note.c_str());
         std::fflush(stdout);
         rows.push_back(row);
+      }
+    }
+  }
+  if (f.components) {
+    std::printf("\nThe fast test logs' terms: the true term's RMS / noise (\"true size\"), then "
+                "each model's error on it, RMS / noise per joint (velocity: Coriolis and "
+                "centrifugal + friction):\n\n| robot | case | model | term | per joint | max "
+                "|\n|---|---|---|---|---|---|\n");
+    std::string last_case;
+    for (const Row& r : rows) {
+      if (r.robot + "/" + r.kase != last_case) {
+        last_case = r.robot + "/" + r.kase;
+        const Matrix& size = r.component_size;
+        for (int t = 0; t < 3; ++t) {
+          std::printf("| %s | %s | true size | %s | %s | %.3g |\n", r.robot.c_str(),
+                      r.kase.c_str(), kComponentNames[t], Join(size.row(t).transpose(), "%.3g").c_str(),
+                      size.row(t).maxCoeff());
+        }
+      }
+      if (r.component_ratio.size() == 0) continue;
+      for (int t = 0; t < 3; ++t) {
+        std::printf("| %s | %s | %s | %s | %s | %.3g |\n", r.robot.c_str(), r.kase.c_str(),
+                    r.model.c_str(), kComponentNames[t],
+                    Join(r.component_ratio.row(t).transpose(), "%.3g").c_str(),
+                    r.component_ratio.row(t).maxCoeff());
       }
     }
   }
@@ -626,6 +725,10 @@ int main(int argc, char** argv) {
                     "the sigma grid of lagk's type-II maximum likelihood")
       ->delimiter(',')
       ->check(structgp::GreaterThan(0));
+  app.add_flag("--components", f.components,
+               "also split each model's test error into its gravity, inertial and velocity "
+               "(Coriolis + friction) terms against the simulation's (reference, lagk and "
+               "FitModel's models)");
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));
