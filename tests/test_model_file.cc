@@ -424,9 +424,36 @@ TEST_F(ModelFileErrors, OtherJsonIsNotAModelFile) {
 }
 
 TEST_F(ModelFileErrors, NewerVersion) {
-  ExpectError(Edited([](Json* d) { (*d)["version"] = 2; }),
-              "unsupported model file version 2: this build reads version 1 (the file was "
+  ASSERT_EQ(kModelFileVersion, 2);
+  EXPECT_EQ(Json::parse(text_)["version"], 2);
+  ExpectError(Edited([](Json* d) { (*d)["version"] = 3; }),
+              "unsupported model file version 3: this build reads versions 1 to 2 (the file was "
               "written by a newer structgp)");
+  ExpectError(Edited([](Json* d) { (*d)["version"] = 0; }), "unsupported model file version 0");
+}
+
+// Version 1 files are read as they are, except the Euler-Lagrange models, whose space changed
+// in version 2: refused by name, with what to do.
+TEST_F(ModelFileErrors, VersionOneLoadsExceptTheEulerLagrangeModels) {
+  const std::string old = dir_.File("old.json");
+  WriteFile(old, Edited([](Json* d) { (*d)["version"] = 1; }));
+  const RobotModel loaded = LoadModel(old);
+  const RobotModel current = LoadModel(path_);
+  const Vector x = Vector::Constant(current.input_dim(), 0.2);
+  Vector a(current.num_joints()), b(current.num_joints());
+  ASSERT_EQ(loaded.Predict(x, a), Status::kOk);
+  ASSERT_EQ(current.Predict(x, b), Status::kOk);
+  EXPECT_EQ(a, b);
+
+  for (const char* model : {"lag", "lagk"}) {
+    path_ = dir_.File(std::string(model) + ".json");
+    SaveModel(path_, FitModel(model, "", 60));
+    text_ = ReadFile(path_);
+    ASSERT_NO_THROW(LoadModel(path_)) << model;
+    ExpectError(Edited([](Json* d) { (*d)["version"] = 1; }),
+                std::string("field 'model': a '") + model +
+                    "' model of a version 1 file: its Euler-Lagrange space changed in version 2");
+  }
 }
 
 TEST_F(ModelFileErrors, CorruptedPayloadFailsTheChecksum) {

@@ -31,7 +31,11 @@ void Check(int num_joints) {
 int LagrangianDimension(int num_joints) {
   Check(num_joints);
   int P = Power(kPotentialBases, num_joints) - 1;
-  for (int a = 0; a < num_joints; ++a) P += (num_joints - a) * Power(kKineticBases, num_joints - 1 - a);
+  for (int a = 0; a < num_joints; ++a) {
+    for (int b = a; b < num_joints; ++b) {
+      P += Power(kPotentialBases, b - a) * Power(kKineticBases, num_joints - 1 - b);
+    }
+  }
   return P;
 }
 
@@ -40,16 +44,18 @@ LagrangianRegressorMap::LagrangianRegressorMap(int num_joints) : num_joints_(num
   const int N = num_joints;
   for (int a = 0; a < N; ++a) {
     for (int b = a; b < N; ++b) {
-      // M_ab depends on the angles a+1..N-1, each with one of the five bases.
-      const int count = Power(kKineticBases, N - 1 - a);
+      // M_ab depends on the angles a+1..N-1: those up to b with the bases 1, cos, sin (only
+      // joint a's column of the link's Jacobian turns with them), those after b with all five.
+      const int count = Power(kPotentialBases, b - a) * Power(kKineticBases, N - 1 - b);
       for (int code = 0; code < count; ++code) {
         Param p;
         p.a = a;
         p.b = b;
         int rest = code;
         for (int l = a + 1; l < N; ++l) {
-          p.index[static_cast<size_t>(l)] = static_cast<std::int8_t>(rest % kKineticBases);
-          rest /= kKineticBases;
+          const int bases = l <= b ? kPotentialBases : kKineticBases;
+          p.index.at(static_cast<size_t>(l)) = static_cast<std::int8_t>(rest % bases);
+          rest /= bases;
         }
         params_.push_back(p);
       }
@@ -209,17 +215,19 @@ Vector LagrangianRegressorMap::KernelPriorVariance(double sigma,
   for (int k = 0; k < dim(); ++k) {
     const Param& p = params_[static_cast<size_t>(k)];
     const bool kinetic = p.a >= 0;
-    const double* coef = kinetic ? kinetic_coef : potential_coef;
     const double* weight = part_weights.data() + (kinetic ? 0 : N);
-    // Link L' covers the angles first..L'; the parameter's angles past its earliest link are
-    // constant in it, each adding the constant basis's coefficient.
+    // The angle's factor: f's coefficients (potential_coef) for V's angles and M_ab's up to b,
+    // g's (kinetic_coef) for M_ab's after b. Link L' covers the angles first..L'; the
+    // parameter's angles past its earliest link are constant in it, each adding the constant
+    // basis's coefficient (of g: they come after b).
+    auto coef = [&](int l) { return kinetic && l > p.b ? kinetic_coef : potential_coef; };
     const int first = kinetic ? p.a + 1 : 0;
     const int earliest = link_[static_cast<size_t>(k)];
     double product = 1.0;
-    for (int l = first; l <= earliest; ++l) product *= coef[p.index[static_cast<size_t>(l)]];
+    for (int l = first; l <= earliest; ++l) product *= coef(l)[p.index[static_cast<size_t>(l)]];
     double sum = 0.0;
     for (int link = earliest; link < N; ++link) {
-      if (link > earliest) product *= coef[0];
+      if (link > earliest) product *= coef(link)[0];
       sum += weight[link] * product;
     }
     v[k] = sum;

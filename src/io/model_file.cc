@@ -524,10 +524,10 @@ void CheckEnvelope(const Json& doc, const FieldReader& r) {
   if (version == doc.end() || !version->is_number_integer()) {
     r.Fail("model file without an integer \"version\" field");
   }
-  if (version->get<long long>() != kModelFileVersion) {
-    const long long v = version->get<long long>();
-    r.Fail("unsupported model file version " + std::to_string(v) + ": this build reads version " +
-           std::to_string(kModelFileVersion) +
+  const long long v = version->get<long long>();
+  if (v < kOldestModelFileVersion || v > kModelFileVersion) {
+    r.Fail("unsupported model file version " + std::to_string(v) + ": this build reads versions " +
+           std::to_string(kOldestModelFileVersion) + " to " + std::to_string(kModelFileVersion) +
            (v > kModelFileVersion ? " (the file was written by a newer structgp)" : ""));
   }
   const auto checksum = doc.find("checksum");
@@ -548,6 +548,15 @@ ModelSpec ReadSpec(const Json& doc, const FieldReader& r) {
     spec = ParseModelSpec(r.String(doc, "", "model"));
   } catch (const std::invalid_argument& e) {
     r.FailField("model", e.what());
+  }
+  if ((spec.base == BaseModel::kLag || spec.base == BaseModel::kLagk) &&
+      doc.at("version").get<long long>() < 2) {
+    // Version 2 changed the Euler-Lagrange space (M_jk of degree 1 in the angles between j and
+    // k): the stored posterior (lag) or hyper-parameters (lagk) belong to the old one.
+    r.FailField("model", std::string("a '") + ToString(spec.base) +
+                             "' model of a version 1 file: its Euler-Lagrange space changed in "
+                             "version 2 (M_jk is of degree 1 in the angles between j and k); fit "
+                             "it again from its data (structgp fit)");
   }
   const Json& effects = r.Get(doc, "", "effect_list");
   if (!effects.is_array()) r.FailField("effect_list", "expected an array");

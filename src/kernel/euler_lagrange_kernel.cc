@@ -53,54 +53,59 @@ void AddLink(int n, const AngleFactors& F, const double* x, const double* y, int
     }
   }
   if (wk == 0.0) return;
-  // Kinetic: the entries M_jk (j <= k <= last) with covariance P_j = prod_{j < l <= last} g_l.
+  // Kinetic: the entries M_jk (j <= k <= last) with covariance
+  //   P_jk = wk prod_{j < l <= k} f_l prod_{k < l <= last} g_l.
   // On joint i, L_i^{jk} m = alpha m + u (qd . grad m) - gamma d_i m with
   //   alpha = [i = j] qdd_k + [i = k != j] qdd_j,  u = [i = j] qd_k + [i = k != j] qd_j,
   //   gamma = c qd_j qd_k (c = 1/2 if j = k, else 1),
-  // applied to both arguments of P_j.
-  double P[kMaxEulerLagrangeJoints];
-  double running = wk;
-  for (int j = last; j >= 0; --j) {
-    P[j] = running;
-    running *= F.f[j] * F.f[j];
-  }
+  // applied to both arguments of P_jk. Per angle l, d_l is the log-derivative of P_jk's factor
+  // in q_l and e_l its mixed ratio plus d_l^2 (zero for the angles P_jk does not depend on), so
+  // that d_l d'_l' P_jk = P_jk (-d_l d_l' + [l = l'] e_l).
+  double d[kMaxEulerLagrangeJoints], e[kMaxEulerLagrangeJoints];
   double grad[kMaxEulerLagrangeJoints], gradp[kMaxEulerLagrangeJoints],
       aH[kMaxEulerLagrangeJoints], Hap[kMaxEulerLagrangeJoints];
   for (int j = 0; j <= last; ++j) {
-    const double Pj = P[j];
-    // Over the angles P_j depends on (j < l <= last): A = qd . r, A' = qd' . r,
-    // S = sum_l qd_l qd'_l (r2_l + r_l^2).
-    double A = 0.0, Ap = 0.0, S = 0.0;
-    for (int l = j + 1; l <= last; ++l) {
-      A += a[l] * F.r[l];
-      Ap += ap[l] * F.r[l];
-      S += a[l] * ap[l] * (F.r2[l] + F.r[l] * F.r[l]);
-    }
-    const double D = Pj * A;              // qd . grad P_j
-    const double Dp = -Pj * Ap;           // qd' . grad' P_j
-    const double E = Pj * (-A * Ap + S);  // qd^T (grad grad'^T P_j) qd'
-    for (int l = 0; l <= last; ++l) {
-      const bool on = l > j;
-      grad[l] = on ? Pj * F.r[l] : 0.0;
-      gradp[l] = on ? -Pj * F.r[l] : 0.0;
-      aH[l] = on ? Pj * (-A * F.r[l] + a[l] * (F.r2[l] + F.r[l] * F.r[l])) : 0.0;
-      Hap[l] = on ? Pj * (-F.r[l] * Ap + ap[l] * (F.r2[l] + F.r[l] * F.r[l])) : 0.0;
-    }
     for (int k = j; k <= last; ++k) {
+      double Pjk = wk;
+      for (int l = 0; l <= last; ++l) {
+        if (l <= j) {
+          d[l] = e[l] = 0.0;
+        } else if (l <= k) {
+          Pjk *= F.f[l];
+          d[l] = F.rho[l];
+          e[l] = F.rho2[l] + F.rho[l] * F.rho[l];
+        } else {
+          Pjk *= F.f[l] * F.f[l];
+          d[l] = F.r[l];
+          e[l] = F.r2[l] + F.r[l] * F.r[l];
+        }
+      }
+      // A = qd . d, A' = qd' . d, S = sum_l qd_l qd'_l e_l.
+      double A = 0.0, Ap = 0.0, S = 0.0;
+      for (int l = j + 1; l <= last; ++l) {
+        A += a[l] * d[l];
+        Ap += ap[l] * d[l];
+        S += a[l] * ap[l] * e[l];
+      }
+      const double D = Pjk * A;              // qd . grad P_jk
+      const double Dp = -Pjk * Ap;           // qd' . grad' P_jk
+      const double E = Pjk * (-A * Ap + S);  // qd^T (grad grad'^T P_jk) qd'
+      for (int l = 0; l <= last; ++l) {
+        grad[l] = Pjk * d[l];
+        gradp[l] = -Pjk * d[l];
+        aH[l] = Pjk * (-A * d[l] + a[l] * e[l]);
+        Hap[l] = Pjk * (-d[l] * Ap + ap[l] * e[l]);
+      }
       const double c = j == k ? 0.5 : 1.0;
       const double gamma = c * a[j] * a[k], gammap = c * ap[j] * ap[k];
       for (int i = 0; i <= last; ++i) {
         const double alpha = (i == j ? b[k] : 0.0) + (i == k && j != k ? b[j] : 0.0);
         const double u = (i == j ? a[k] : 0.0) + (i == k && j != k ? a[j] : 0.0);
-        const bool hi = i > j;
         for (int ip = 0; ip <= last; ++ip) {
           const double alphap = (ip == j ? bp[k] : 0.0) + (ip == k && j != k ? bp[j] : 0.0);
           const double up = (ip == j ? ap[k] : 0.0) + (ip == k && j != k ? ap[j] : 0.0);
-          const double Hii =
-              hi && ip > j
-                  ? Pj * (-F.r[i] * F.r[ip] + (i == ip ? F.r2[i] + F.r[i] * F.r[i] : 0.0))
-                  : 0.0;
-          K(i, ip) += alpha * alphap * Pj + alpha * (up * Dp - gammap * gradp[ip]) +
+          const double Hii = Pjk * (-d[i] * d[ip] + (i == ip ? e[i] : 0.0));
+          K(i, ip) += alpha * alphap * Pjk + alpha * (up * Dp - gammap * gradp[ip]) +
                       alphap * (u * D - gamma * grad[i]) + u * up * E - u * gammap * aH[ip] -
                       up * gamma * Hap[i] + gamma * gammap * Hii;
         }

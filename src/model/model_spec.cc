@@ -74,7 +74,7 @@ const char* Describe(BaseModel base) {
     case BaseModel::kRbd:
       return "the rigid-body regressor of a URDF chain, inertial parameters identified (--urdf)";
     case BaseModel::kLag:
-      return "a Lagrangian regressor of a serial chain, kinematics unknown (up to 4 joints)";
+      return "a Lagrangian regressor of a serial chain, kinematics unknown (up to 5 joints)";
     case BaseModel::kLagk:
       return "one GP of all joints on the Euler-Lagrange kernel of a serial chain, kinematics "
              "unknown (any number of joints)";

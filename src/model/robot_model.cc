@@ -182,7 +182,7 @@ void RobotModel::BuildRegressor() {
                : std::to_string(LagrangianDimension(num_joints_)) + " parameters") +
           ", more than RobotModelOptions.max_explicit_features = " +
           std::to_string(options_.max_explicit_features) +
-          " (lag serves up to 4 joints; with a URDF, rbd serves any)");
+          " (lag serves up to 5 joints, lagk any; with a URDF, rbd serves any)");
     }
     base = std::make_shared<LagrangianRegressorMap>(num_joints_);
   }

@@ -12,12 +12,16 @@
 /// torques, which slow motion hardly shows, follow from the same parameters as the inertia.
 ///
 /// The spaces are those of a serial chain of revolute joints (facts of rigid-body mechanics):
-/// M_jk depends only on the joints after min(j, k), each angle entering as a trigonometric
-/// polynomial of degree 2 (Fourier basis 1, cos q, sin q, cos 2q, sin 2q), so M_jk has
-/// 5^(N - min(j, k)) basis functions (1-based j, k); the armature is part of M_jj's constant.
-/// V (gravity) is a trigonometric polynomial of degree 1 in every angle (1, cos q, sin q): 3^N - 1
-/// basis functions (the constant does not act). P = sum_{j <= k} 5^(N - min(j, k)) + 3^N - 1 =
-/// 3, 19, 112, 666, 3953 for N = 1..5 (LagrangianDimension); parameters are named like
+/// M_jk (j <= k, 1-based) depends only on the joints after j: a link L's share is
+/// J_j^T D J_k, with D its inertia in its own frame and J_j the column of its Jacobian for joint
+/// j there, which turns with the angles j+1..L (degree 1 in each); J_k turns only with k+1..L.
+/// So the angles j+1..k enter at degree 1 (basis 1, cos q, sin q) and the angles after k at
+/// degree 2 (1, cos q, sin q, cos 2q, sin 2q): M_jk has 3^(k - j) 5^(N - k) basis functions; the
+/// armature is part of M_jj's constant. V (gravity) is a trigonometric polynomial of degree 1 in
+/// every angle: 3^N - 1 basis functions (the constant does not act). P = sum_{j <= k}
+/// 3^(k - j) 5^(N - k) + 3^N - 1 = 3, 17, 84, 410, 2013, 9947, 49374 for N = 1..7
+/// (LagrangianDimension; with degree 2 in every angle after j, 3, 19, 112, 666, 3953, 23189,
+/// 134022); parameters are named like
 /// "M1,2[cos q2 sin2 q3]" and "V[cos q1 sin q2]". Compare pol's 12, 133, 1151, 8830 features per
 /// joint for N = 1..4, each joint with its own weights.
 ///

@@ -6,10 +6,11 @@
 /// bit-identical predictions, components, coefficients and evidence, and it keeps learning
 /// (GaussianProcess::Add) exactly as the saved one would have.
 ///
-/// Format (version 1). One JSON object, written atomically (WriteTextAtomically):
+/// Format (version 2; version 1 is the same layout). One JSON object, written atomically
+/// (WriteTextAtomically):
 ///
 ///     {
-///       "format": "structgp-model",  "version": 1,
+///       "format": "structgp-model",  "version": 2,
 ///       "checksum": "crc32:1a2b3c4d",
 ///       "model": "pol+fri",  "effects": "coulomb@2",  "effect_list": [...],
 ///       "options": {"form": "auto", "friction_width": 0.01, "broad_prior_std": 10.0},
@@ -51,8 +52,11 @@ namespace structgp {
 
 /// The value of the "format" field.
 inline constexpr const char* kModelFileFormat = "structgp-model";
-/// The version written by SaveModel; LoadModel reads this version only.
-inline constexpr int kModelFileVersion = 1;
+/// The version written by SaveModel. LoadModel reads it and every version from
+/// kOldestModelFileVersion, except 'lag' and 'lagk' models of version 1 (refused, naming the
+/// field "model": version 2 changed their Euler-Lagrange space, so they must be fitted again).
+inline constexpr int kModelFileVersion = 2;
+inline constexpr int kOldestModelFileVersion = 1;
 
 /// The complete text of the model file of `model` (what SaveModel writes). Throws
 /// std::invalid_argument when the model is not fitted or holds a non-finite value.

@@ -9,7 +9,9 @@
 ///
 /// Prior, per link L (1-based; 0-based in the code): the link's kinetic energy
 /// 1/2 qd^T M^L(q) qd with independent entries M^L_jk (j <= k <= L) of covariance
-///     Cov(M^L_jk(q), M^L_jk(q')) = w_kin,L prod_{j < l <= L} g_l,   g_l = f_l^2,
+///     Cov(M^L_jk(q), M^L_jk(q')) = w_kin,L prod_{j < l <= k} f_l prod_{k < l <= L} g_l,
+/// g_l = f_l^2 (the angles between j and k turn only joint j's column of the link's Jacobian:
+/// degree 1; those after k turn both: degree 2; LagrangianRegressorMap),
 /// and its potential energy V^L(q) with Cov = w_pot,L prod_{l <= L} f_l, where
 ///     f_l = (1 + theta cos(q_l - q'_l)) / (1 + theta),   theta = 1 / (1 + sigma).
 /// These are the spaces of a serial chain (link L's energy depends on qd_1..qd_L and on
