@@ -15,6 +15,8 @@
 #include <gtest/gtest.h>
 
 #include "alloc_counter.h"
+#include "structgp/model/model_spec.h"
+#include "structgp/model/robot_model.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "urdf_test_util.h"
 
@@ -162,6 +164,23 @@ TEST(LagrangianRegressorMap, SizesNamesAndErrors) {
   map.Evaluate(x, psi, nullptr);
   if (testing::CountsEveryAllocation()) {
     EXPECT_EQ(guard.count(), 0u);
+  }
+}
+
+// With the serial chain's degrees the weight-space form carries 5 joints within the default
+// max_explicit_features (2,013 parameters); at 6 the model is refused naming the limit.
+TEST(LagrangianRegressorMap, TheLagModelServesFiveJointsAndNamesTheLimitBeyond) {
+  const RobotModel five(ParseModelSpec("lag"), 5);
+  ASSERT_NE(five.regressor_map(), nullptr);
+  EXPECT_EQ(five.regressor_map()->dim(), LagrangianDimension(5));  // no friction, no effects
+  EXPECT_LE(LagrangianDimension(5), RobotModelOptions().max_explicit_features);
+  try {
+    const RobotModel six(ParseModelSpec("lag"), 6);
+    ADD_FAILURE() << "a 6-joint lag model was built";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("9947 parameters"), std::string::npos) << what;
+    EXPECT_NE(what.find("max_explicit_features"), std::string::npos) << what;
   }
 }
 

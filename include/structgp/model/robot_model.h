@@ -24,7 +24,7 @@
 /// RegressorGP (GaussianProcess's kRegressor form) with one noise level per joint
 /// (feature/rigid_body_regressor_map.h has the prior). lag is the Lagrangian regressor of a serial
 /// chain whose kinematics are not known (feature/lagrangian_regressor_map.h): one M(q) and V(q)
-/// for all joints, in the same regressor form, up to max_explicit_features parameters (N <= 4).
+/// for all joints, in the same regressor form, up to max_explicit_features parameters (N <= 5).
 ///
 /// lagk is one Gaussian process of all joint torques on the Euler-Lagrange kernel
 /// (model/euler_lagrange_gp.h: a prior on each link's kinetic and potential energy, no
