@@ -242,20 +242,12 @@ Matrix ComponentRatios(const Case& c, const std::function<Matrix(const Matrix&)>
   return ratio;
 }
 
-// The true terms' RMS / noise per joint, the same layout.
+// The true terms' RMS / noise per joint, the same layout: the errors of a model that predicts
+// zero.
 Matrix ComponentSizes(const Case& c) {
-  const int N = static_cast<int>(c.noise.size());
-  Matrix size = Matrix::Zero(3, N);
-  for (const sim::TorqueComponents& t : c.test_components) {
-    const Matrix terms[3] = {t.gravity, t.inertial, t.coriolis + t.friction};
-    for (int r = 0; r < 3; ++r) {
-      for (int j = 0; j < N; ++j) {
-        size(r, j) += std::sqrt(terms[r].col(j).squaredNorm() / static_cast<double>(t.gravity.rows())) /
-                      c.noise[j] / static_cast<double>(c.test_components.size());
-      }
-    }
-  }
-  return size;
+  return ComponentRatios(c, [N = c.noise.size()](const Matrix& X) {
+    return Matrix(Matrix::Zero(X.rows(), N));
+  });
 }
 
 // The identification columns of a row from the rigid-body parameters pi_hat.

@@ -549,10 +549,11 @@ ModelSpec ReadSpec(const Json& doc, const FieldReader& r) {
   } catch (const std::invalid_argument& e) {
     r.FailField("model", e.what());
   }
+  // The version that changed the Euler-Lagrange space (M_jk of degree 1 in the angles between
+  // j and k): an older file's posterior (lag) or hyper-parameters (lagk) belong to the old one.
+  constexpr long long kChainDegreesVersion = 2;
   if ((spec.base == BaseModel::kLag || spec.base == BaseModel::kLagk) &&
-      doc.at("version").get<long long>() < 2) {
-    // Version 2 changed the Euler-Lagrange space (M_jk of degree 1 in the angles between j and
-    // k): the stored posterior (lag) or hyper-parameters (lagk) belong to the old one.
+      doc.at("version").get<long long>() < kChainDegreesVersion) {
     r.FailField("model", std::string("a '") + ToString(spec.base) +
                              "' model of a version 1 file: its Euler-Lagrange space changed in "
                              "version 2 (M_jk is of degree 1 in the angles between j and k); fit "
