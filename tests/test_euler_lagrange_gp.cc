@@ -606,6 +606,120 @@ TEST(EulerLagrangeGP, FitPredictsHeldOutTorquesOfItsClassForEveryJoint) {
 // own): at their sigma alone, from their weights and noise levels. From a grid's optimum it
 // starts at that optimum's evidence and does not leave it; from another sigma's optimum it
 // stays at that sigma, where the grid would have moved; a start that does not fit is refused.
+// A log whose joint accelerations are zero to rounding (a via-point trajectory sampled only at
+// its via points and midpoints, say) does not excite link 1's kinetic energy, whose torque is
+// I_1 qdd_1. Its weight cannot be measured against those rows: the fit must say so, keep it
+// at the other parts' scale, and predict motions that accelerate with finite means and a band
+// that covers the truth (not 1e14 N m with a weight of e^71, as a start divided by the part's
+// rounding-level variance gave).
+TEST(EulerLagrangeGP, ALogWithoutAccelerationsIsNamedAndPredictsFiniteHonestTorques) {
+  const int n = 3;
+  ClassDraw draw = DrawOfItsClass(31, 150, 200);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal;
+  for (Eigen::Index r = 0; r < draw.X.rows(); ++r) {
+    for (int j = 0; j < n; ++j) draw.X(r, 2 * n + j) = 1e-15 * normal(rng);
+  }
+  // The torques of the same draw (the same parameters) at the accelerations now in X.
+  const LagrangianRegressorMap map(n);
+  Vector w(2 * n);
+  w << 0.5, 2.0, 1.0, 3.0, 1.0, 0.5;
+  const Matrix truth_rounded = [&] {
+    std::mt19937 again(31);
+    std::normal_distribution<double> z;
+    const Vector v = map.KernelPriorVariance(3.0, w);
+    const Vector theta =
+        Vector::NullaryExpr(map.dim(), [&]() { return z(again); }).cwiseProduct(v.cwiseSqrt());
+    return TwinTorques(map, theta, draw.X);
+  }();
+  const Matrix Y = truth_rounded + (draw.Y - draw.truth);
+
+  EulerLagrangeGPOptions options;
+  options.sigmas = {3.0};
+  options.hyperparameter_rows = 0;
+  std::optional<EulerLagrangeGP> gp;
+  const EulerLagrangeGPSummary summary = FitEulerLagrangeGP(draw.X, Y, options, &gp);
+  ASSERT_EQ(summary.status, Status::kOk) << summary.message;
+  EXPECT_EQ(summary.warnings.size(), 1u);
+  for (const std::string& warning : summary.warnings) {
+    EXPECT_NE(warning.find("kinetic energy of link 1 "), std::string::npos) << warning;
+    EXPECT_EQ(warning.find("link 2"), std::string::npos) << warning;
+  }
+  // Its weight: within the range of the measured parts' weights, not e^60 above them.
+  const Vector log_w = summary.hyperparameters.part_weights.array().log();
+  const Vector others = log_w.tail(2 * n - 1);
+  EXPECT_LE(log_w[0], others.maxCoeff() + 1e-9) << FormatRow(log_w);
+  EXPECT_GE(log_w[0], others.minCoeff() - 1e-9) << FormatRow(log_w);
+
+  Matrix mean, var;
+  ASSERT_EQ(gp->Predict(draw.X_test, &mean, &var), Status::kOk);
+  ASSERT_TRUE(mean.allFinite() && var.allFinite());
+  const Matrix& truth = draw.truth_test;
+  for (int i = 0; i < n; ++i) {
+    const double signal = std::sqrt(truth.col(i).squaredNorm() / truth.rows());
+    const double rms = std::sqrt((mean.col(i) - truth.col(i)).squaredNorm() / truth.rows());
+    EXPECT_LT(rms, 3.0 * signal) << "joint " << i + 1;
+    int inside = 0;
+    for (Eigen::Index r = 0; r < truth.rows(); ++r) {
+      inside += std::abs(mean(r, i) - truth(r, i)) <= 2.0 * std::sqrt(var(r, i)) ? 1 : 0;
+    }
+    EXPECT_GE(inside, 0.8 * truth.rows()) << "joint " << i + 1 << ": the band must cover";
+  }
+}
+
+// An evidence is exact or none: where one part's weight dwarfs the noise so far that the
+// factor's pivots are rounding error, LogEvidence is -inf (a search backs off), never a finite
+// number that rounding made up. Reference: the closed form of a rank-one covariance plus noise
+// (one joint, link 1's kinetic energy alone: tau = I_1 qdd), by the matrix determinant lemma
+// and Sherman-Morrison, which has no cancellation.
+TEST(EulerLagrangeGP, EvidenceIsExactOrNoneWhenAWeightDwarfsTheNoise) {
+  const int m = 6;
+  Matrix X = Matrix::Zero(m, 3);
+  Matrix Y(m, 1);
+  for (int r = 0; r < m; ++r) {
+    X(r, 2) = 1.0 + 1e-9 * r;  // nearly the same acceleration on every row
+    Y(r, 0) = 0.3 * X(r, 2) + 0.01 * ((r % 3) - 1.0);
+  }
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = 3.0;
+  h.noise_std = Vector::Constant(1, 0.01);
+  h.part_weights = Vector::Zero(2);
+  // Covariance of the kinetic part alone at weight 1: a a^T with a = c qdd for the kernel's c.
+  h.part_weights[0] = 1.0;
+  const EulerLagrangeKernel kernel(1, h.sigma);
+  Matrix block(1, 1);
+  kernel.Evaluate(X.row(0).transpose(), X.row(0).transpose(), h.part_weights, block);
+  const double c2 = block(0, 0) / (X(0, 2) * X(0, 2));
+  ASSERT_GT(c2, 0.0);
+  const auto closed_form = [&](double weight) {
+    const Vector a = std::sqrt(weight * c2) * X.col(2);
+    const double s2 = h.noise_std[0] * h.noise_std[0];
+    const Vector y = Y.col(0);
+    const double denominator = s2 + a.squaredNorm();
+    const double quad = (y.squaredNorm() - a.dot(y) * a.dot(y) / denominator) / s2;
+    const double logdet = (m - 1) * std::log(s2) + std::log(denominator);
+    return -0.5 * quad - 0.5 * logdet - 0.5 * m * std::log(2.0 * M_PI);
+  };
+  // An accepted factor's pivots keep at least 1e-13 of their diagonal: the value is then good
+  // to about eps / 1e-13 ~ 1e-3 (here 1e-5 at weight 1e8, whose pivots keep ~1e-12).
+  const auto tolerance = [&](double weight) { return 1e-3 * (1.0 + std::abs(closed_form(weight))); };
+  for (double weight : {1.0, 1e4, 1e8}) {
+    h.part_weights[0] = weight;
+    EXPECT_NEAR(EulerLagrangeGP::LogEvidence(h, X, Y), closed_form(weight), tolerance(weight))
+        << "weight " << weight;
+  }
+  for (double weight : {1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e20, 1e30}) {
+    h.part_weights[0] = weight;
+    const double value = EulerLagrangeGP::LogEvidence(h, X, Y);
+    if (std::isfinite(value)) {
+      EXPECT_NEAR(value, closed_form(weight), tolerance(weight))
+          << "weight " << weight << ": a finite evidence must be the exact one";
+    } else {
+      EXPECT_EQ(value, -std::numeric_limits<double>::infinity()) << "weight " << weight;
+    }
+  }
+}
+
 TEST(EulerLagrangeGP, ASearchFromGivenHyperparametersStaysAtTheirSigma) {
   const int n = 3;
   const ClassDraw draw = DrawOfItsClass(17, 150, 0);

@@ -430,6 +430,7 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   const EulerLagrangeGPSummary s = FitEulerLagrangeGP(X, Yr, o, nullptr);
   FitSummary& summary = fit->summary();
   summary.hyperparameter_rows = s.hyperparameter_rows;
+  summary.warnings.insert(summary.warnings.end(), s.warnings.begin(), s.warnings.end());
   if (s.status != Status::kOk) {
     *failure = "type-II maximum likelihood of the Euler-Lagrange kernel failed: " + s.message;
     return false;

@@ -95,24 +95,61 @@ std::vector<int> SearchedParts(int n, bool per_link) {
   return searched;
 }
 
+// A searched part whose mean prior variance on the evidence rows is at most this fraction of
+// the largest part's is one the rows do not excite (at rounding level: a log whose joint
+// accelerations are all zero leaves the first link's kinetic energy, I_1 qdd_1, unseen). Its
+// weight cannot be measured against those rows: divided by that variance it would be
+// astronomical (e^71 on such a log, and predictions of 1e14 N m wherever the joint
+// accelerates), so it starts at the median of the excited parts' weights instead and its
+// search leaves it where the prior holds it.
+constexpr double kUnexcitedPartVarianceRatio = 1e-12;
+
+// Which searched parts the evidence rows do not excite (see kUnexcitedPartVarianceRatio).
+std::vector<bool> UnexcitedParts(const EulerLagrangeEvidence& evidence) {
+  const int P = static_cast<int>(evidence.parts().size());
+  double largest = 0.0;
+  for (int k = 0; k < P; ++k) largest = std::max(largest, evidence.MeanPartVariance(k));
+  std::vector<bool> unexcited(static_cast<size_t>(P));
+  for (int k = 0; k < P; ++k) {
+    const double v = evidence.MeanPartVariance(k);
+    unexcited[static_cast<size_t>(k)] = !(v > kUnexcitedPartVarianceRatio * largest);
+  }
+  return unexcited;
+}
+
 // The log of part k's mean prior variance on the evidence's rows (the scale a part's weight is
-// measured against when it is carried to the next sigma).
+// measured against when it is carried to the next sigma); 0 for a part they do not excite,
+// whose weight carries over as it is.
 double LogMeanPartVariance(const EulerLagrangeEvidence& evidence, size_t k) {
+  if (UnexcitedParts(evidence)[k]) return 0.0;
   return std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
 }
 
 // The start of the search (log part weights of the searched parts, log noise per joint): the
-// torques' mean square shared by the parts, each at its own mean prior variance, and the noise
-// at 10% of each joint's RMS torque.
+// torques' mean square shared by the parts, each at its own mean prior variance (a part the
+// rows do not excite: the median of the others' log weights), and the noise at 10% of each
+// joint's RMS torque.
 std::vector<double> Start(const EulerLagrangeEvidence& evidence, const ConstMatrixRef& Yh) {
   const int n = static_cast<int>(Yh.cols());
   const int P = static_cast<int>(evidence.parts().size());
   double spread = 0.0;
   for (int j = 0; j < n; ++j) spread += Rms(Yh, j) * Rms(Yh, j) / n;
+  const std::vector<bool> unexcited = UnexcitedParts(evidence);
   std::vector<double> p(static_cast<size_t>(P + n));
+  std::vector<double> excited;
   for (int k = 0; k < P; ++k) {
     p[static_cast<size_t>(k)] =
         std::log(std::max(spread, 1e-300) / P / std::max(evidence.MeanPartVariance(k), 1e-300));
+    if (!unexcited[static_cast<size_t>(k)]) excited.push_back(p[static_cast<size_t>(k)]);
+  }
+  double median = 0.0;
+  if (!excited.empty()) {
+    std::sort(excited.begin(), excited.end());
+    const size_t h = excited.size() / 2;
+    median = excited.size() % 2 == 1 ? excited[h] : 0.5 * (excited[h - 1] + excited[h]);
+  }
+  for (int k = 0; k < P; ++k) {
+    if (unexcited[static_cast<size_t>(k)]) p[static_cast<size_t>(k)] = median;
   }
   for (int j = 0; j < n; ++j) {
     p[static_cast<size_t>(P + j)] = std::log(std::max(0.1 * Rms(Yh, j), 1e-12));
@@ -238,6 +275,26 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
     std::vector<double> p = Start(evidence, Yh);
+    if (summary.sigmas.size() == 1) {
+      const std::vector<bool> unexcited = UnexcitedParts(evidence);
+      std::string names;
+      for (size_t k = 0; k < P; ++k) {
+        if (!unexcited[k]) continue;
+        const int part = searched[k];
+        names += (names.empty() ? "" : ", ") +
+                 std::string(part < n ? "kinetic energy of link " : "potential energy of link ") +
+                 std::to_string(part % n + 1);
+      }
+      if (!names.empty()) {
+        summary.warnings.push_back(
+            "the " + std::to_string(hyper_rows.size()) +
+            " hyper-parameter rows do not excite the " + names +
+            " (prior variance there at rounding level: e.g. no joint acceleration in the log); "
+            "its weight is the median of the other parts', not measured: predictions of "
+            "motions that need it carry that prior's uncertainty. Train on a log that "
+            "accelerates every joint.");
+      }
+    }
     const LogHyperprior prior = Prior(options.prior, p, P);
     auto penalty = [&](const std::vector<double>& x) {  // -log p(x)
       return prior.NegativeLogDensity(

@@ -15,6 +15,12 @@
 namespace structgp {
 namespace {
 
+// The jitter always added to the covariance at inducing states (relative to its mean diagonal,
+// internal/cholesky.h's JitterScale::kMeanDiagonal): inducing states close to each other make
+// it singular to working precision, and the DTC posterior and the Nystrom-type joint features
+// take it as part of their model.
+constexpr double kInducingRelativeJitter = 1e-8;
+
 constexpr double kLog2Pi = 1.8378770664093453;
 
 void Require(bool ok, const std::string& what) {
@@ -123,15 +129,20 @@ double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F,
   Matrix C = F;
   for (size_t k = 0; k < P; ++k) C += std::exp(log_w[k]) * parts[k];
   for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += std::exp(2.0 * log_noise[r % n]);
-  const Eigen::LLT<Matrix> llt(C);
-  if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
+  // An evidence is exact or none: a factor the library's acceptance test refuses (a pivot lost
+  // to rounding, as when one part's weight dwarfs the noise by 1e13 or more) is no value, so
+  // that a search cannot walk into hyper-parameters whose evidence is rounding error.
+  internal::Cholesky llt;
+  if (!IsOk(llt.Factorize(C, {internal::JitterLadder::kNone}).status)) {
+    return -std::numeric_limits<double>::infinity();
+  }
   const Vector alpha = llt.solve(y);
   double half_logdet = 0.0;
-  for (Eigen::Index r = 0; r < C.rows(); ++r) half_logdet += std::log(llt.matrixL()(r, r));
+  for (Eigen::Index r = 0; r < C.rows(); ++r) half_logdet += std::log(llt.factor()(r, r));
   const double value = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
   if (!std::isfinite(value)) return -std::numeric_limits<double>::infinity();
   if (gradient != nullptr) {
-    const Matrix Ci = internal::InverseFromFactor(llt.matrixLLT());
+    const Matrix Ci = internal::InverseFromFactor(llt.factor());
     // d log p / d log w = -1/2 w (tr(C^-1 A) - alpha^T A alpha).
     for (size_t k = 0; k < P; ++k) {
       const Matrix& A = parts[k];
@@ -294,14 +305,18 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   if (inducing.size() == 0) {
     Matrix C = Covariance(kernel_, hyper_, effects_.get(), X, X, true);
     for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += noise[r % n] * noise[r % n];
-    Eigen::LLT<Matrix> llt(C);
-    if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
+    // The exact posterior, as the kernel form's: accepted by the library's test or refused.
+    internal::Cholesky llt;
+    if (!IsOk(llt.Factorize(C, {internal::JitterLadder::kNone}).status)) {
+      return Status::kNotPositiveDefinite;
+    }
+    C = Matrix();
     const Vector y = Stack(Y);
     Vector alpha = llt.solve(y);
     double half_logdet = 0.0;
-    for (Eigen::Index r = 0; r < C.rows(); ++r) half_logdet += std::log(llt.matrixL()(r, r));
+    for (Eigen::Index r = 0; r < llt.size(); ++r) half_logdet += std::log(llt.factor()(r, r));
     log_evidence_ = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
-    factor_ = llt.matrixL();
+    factor_ = llt.ReleaseFactor();
     factor_b_.resize(0, 0);
     alpha_ = std::move(alpha);
     states_ = X;
@@ -315,12 +330,16 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   Require(inducing.cols() == input_dim_, "inducing states need " + std::to_string(input_dim_) +
                                              " columns, got " + std::to_string(inducing.cols()));
   Require(AllFinite(inducing), "non-finite inducing state");
-  // K_ZZ = L L^T (relative jitter 1e-8), V = L^-1 K_ZX S^-1/2, B = I + V V^T,
+  // K_ZZ + J = L L^T (J: a jitter of 1e-8 of the mean diagonal, higher rungs of the library's
+  // ladder if the test refuses it), V = L^-1 K_ZX S^-1/2, B = I + V V^T,
   // alpha = L^-T B^-1 V S^-1/2 y.
   Matrix Kzz = Covariance(kernel_, hyper_, effects_.get(), inducing, inducing, true);
-  Kzz.diagonal().array() += 1e-8 * Kzz.diagonal().mean();
-  Eigen::LLT<Matrix> llt(Kzz);
-  if (llt.info() != Eigen::Success) return Status::kNotPositiveDefinite;
+  internal::Cholesky llt;
+  if (!IsOk(llt.Factorize(Kzz, {internal::JitterLadder::kClimb,
+                                internal::JitterScale::kMeanDiagonal, kInducingRelativeJitter})
+                .status)) {
+    return Status::kNotPositiveDefinite;
+  }
   // V = L^-1 K_ZX S^-1/2 block by block of training states: B = I + sum_b V_b V_b^T and
   // vy = sum_b V_b S_b^-1/2 y_b. The workers take the blocks a group at a time, each block's
   // terms into its worker's scratch, and the calling thread adds them in block order: the
@@ -358,18 +377,21 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   }
   B_block.clear();
   B.diagonal().array() += 1.0;
-  Eigen::LLT<Matrix> llt_b(B);
-  if (llt_b.info() != Eigen::Success) return Status::kNotPositiveDefinite;
+  internal::Cholesky llt_b;
+  if (!IsOk(llt_b.Factorize(B, {internal::JitterLadder::kNone}).status)) {
+    return Status::kNotPositiveDefinite;
+  }
+  B = Matrix();
   alpha_ = llt.matrixU().solve(llt_b.solve(vy));
   // log N(y; 0, Q + S), Q = K_XZ K_ZZ^-1 K_ZX: |Q + S| = |S| |B| and
   // y^T (Q + S)^-1 y = |S^-1/2 y|^2 - |L_B^-1 V S^-1/2 y|^2.
   double half_logdet = 0.0;
-  for (Eigen::Index r = 0; r < B.rows(); ++r) half_logdet += std::log(llt_b.matrixL()(r, r));
+  for (Eigen::Index r = 0; r < llt_b.size(); ++r) half_logdet += std::log(llt_b.factor()(r, r));
   for (Eigen::Index r = 0; r < ys.size(); ++r) half_logdet += std::log(noise[r % n]);
   const double quad = ys.squaredNorm() - llt_b.matrixL().solve(vy).squaredNorm();
   log_evidence_ = -0.5 * quad - half_logdet - 0.5 * kLog2Pi * static_cast<double>(ys.size());
-  factor_ = llt.matrixL();
-  factor_b_ = llt_b.matrixL();
+  factor_ = llt.ReleaseFactor();
+  factor_b_ = llt_b.ReleaseFactor();
   states_ = inducing;
   states_t_ = inducing.transpose();
   SetEffectStates();
@@ -559,16 +581,13 @@ EulerLagrangeJointFeatureMap::EulerLagrangeJointFeatureMap(const EulerLagrangeGP
     effects_->EvaluateRows(Z, &effect_z_);
     effect_z_ = effect_z_ * hyper_.effect_prior_variance.asDiagonal();
   }
-  Matrix K = Covariance(kernel_, hyper_, effects_.get(), Z, Z, true);
-  const double mean_diagonal = K.diagonal().mean();
-  for (double jitter : {1e-8, 1e-6, 1e-4}) {
-    Matrix Kj = K;
-    Kj.diagonal().array() += jitter * (mean_diagonal > 0.0 ? mean_diagonal : 1.0);
-    const Eigen::LLT<Matrix> llt(Kj);
-    if (llt.info() == Eigen::Success) {
-      factor_ = llt.matrixL();
-      return;
-    }
+  const Matrix K = Covariance(kernel_, hyper_, effects_.get(), Z, Z, true);
+  internal::Cholesky llt;
+  if (IsOk(llt.Factorize(K, {internal::JitterLadder::kClimb, internal::JitterScale::kMeanDiagonal,
+                             kInducingRelativeJitter})
+               .status)) {
+    factor_ = llt.ReleaseFactor();
+    return;
   }
   throw std::runtime_error(
       "EulerLagrangeJointFeatureMap: the covariance at the inducing states cannot be factorised");

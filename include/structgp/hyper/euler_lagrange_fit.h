@@ -86,10 +86,17 @@ struct EulerLagrangeGPSummary {
   int rows = 0;
   int inducing_states = 0;  // 0: exact
   double seconds = 0.0;
+  /// What a user should know about the fit, one sentence each: the searched parts that the
+  /// hyper-parameter rows do not excite (their prior variance there at rounding level, e.g. a
+  /// log without joint accelerations leaves link 1's kinetic energy unseen), whose weights
+  /// start from the median of the other parts' and stay near it, not measured by the data.
+  std::vector<std::string> warnings;
 };
 
 /// The search's data-derived start at one sigma, without searching: the part weights share
-/// the torques' mean square (each part scaled by its mean prior variance on the evidence rows),
+/// the torques' mean square (each part scaled by its mean prior variance on the evidence rows;
+/// a part they do not excite, its variance at most 1e-12 of the largest part's, at the median
+/// of the other parts' log weights),
 /// noise 10% of each joint's RMS torque, friction's prior std that RMS and its velocity scale
 /// the joint's RMS velocity. Throws std::invalid_argument as FitEulerLagrangeGP.
 EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const ConstMatrixRef& Y,
