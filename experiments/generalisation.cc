@@ -41,6 +41,7 @@
 // joint), training rows and fit time. With --components, a second table splits each model's
 // error into the gravity, inertial and velocity terms (ComponentRatios).
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -64,6 +65,7 @@
 #include "structgp/hyper/euler_lagrange_fit.h"
 #include "structgp/hyper/marginal_likelihood.h"
 #include "structgp/internal/text.h"
+#include "structgp/io/csv.h"
 #include "structgp/kernel/pol_chain_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 #include "structgp/model/kernel_gp.h"
@@ -95,6 +97,7 @@ struct Flags {
   double train_seconds = 50.0;
   int train_vias = 50;
   int train_rows = 0;  // 0: all
+  std::string train_rows_rule = "even";  // or "random"
   int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
   int lagk_hyper_rows = 400;  // and its ML-II rows
   int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
@@ -107,6 +110,7 @@ struct Flags {
   bool quick = false;
   bool check = false;
   bool components = false;
+  std::string write_logs;  // non-empty: each case's training and test logs go there as CSV
 };
 
 sim::Robot MakeRobot(const std::string& name) {
@@ -173,8 +177,19 @@ Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& 
   };
   c.train = simulate(slow, 1001);
   if (f.train_rows > 0 && f.train_rows < c.train.X.rows()) {
-    // Fewer training rows: evenly spaced over the whole slow log (core/row_subset.h).
-    const std::vector<int> rows = EvenlySpacedRows(c.train.X.rows(), f.train_rows);
+    // Fewer training rows: evenly spaced over the whole slow log (core/row_subset.h), or drawn
+    // at random (a fixed seed, kept in time order). Evenly spaced rows can alias with the via
+    // points: 50 or 100 of the 5,000 rows of a 50 s log with a via point a second fall on its
+    // via points and midpoints, where every joint acceleration is zero.
+    std::vector<int> rows = EvenlySpacedRows(c.train.X.rows(), f.train_rows);
+    if (f.train_rows_rule == "random") {
+      std::vector<int> all(static_cast<size_t>(c.train.X.rows()));
+      for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+      std::mt19937_64 rng(77);
+      std::shuffle(all.begin(), all.end(), rng);
+      rows.assign(all.begin(), all.begin() + f.train_rows);
+      std::sort(rows.begin(), rows.end());
+    }
     c.train.X = SelectRows(c.train.X, rows);
     c.train.Y = SelectRows(c.train.Y, rows);
     c.train.t = SelectRows(c.train.t, rows);
@@ -186,6 +201,16 @@ Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& 
     c.test_components.push_back(sim::SimulateComponents(robot, fast, options));
   }
   return c;
+}
+
+// The case's logs as the CLI reads them (DIR/NAME_train.csv, DIR/NAME_test1.csv, ...), so that
+// a row of the table can be reproduced with `structgp fit` and `structgp evaluate`.
+void WriteLogs(const std::string& dir, const std::string& name, const Case& c) {
+  WriteRobotCsv(dir + "/" + name + "_train.csv", sim::ToRobotData(c.train));
+  for (std::size_t k = 0; k < c.tests.size(); ++k) {
+    WriteRobotCsv(dir + "/" + name + "_test" + std::to_string(k + 1) + ".csv",
+                  sim::ToRobotData(c.tests[k]));
+  }
 }
 
 struct Prediction {
@@ -597,6 +622,7 @@ int Run(const Flags& flags, int argc, char** argv) {
                                     "' (expected none, friction, payload)");
       }
       const Case c = MakeCase(robot, case_name, f);
+      if (!f.write_logs.empty()) WriteLogs(f.write_logs, robot_name + "_" + case_name, c);
       for (const std::string& model : f.models) {
         Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows,
                            f.lagk_hyper_rows, lagk_options, f.components);
@@ -698,6 +724,9 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--train-rows", &f.train_rows,
                     "keep this many evenly spaced rows of the slow log (0: all)")
       ->check(structgp::AtLeast(0));
+  app.add_option("--train-rows-rule", f.train_rows_rule,
+                 "how --train-rows picks its rows: even (evenly spaced) or random (a fixed seed)")
+      ->check(CLI::IsMember({"even", "random"}));
   structgp::AddFlag(&app, "--lagk-rows", &f.lagk_rows,
                     "rows of the Lagrangian kernel prototype lagk's posterior")
       ->check(structgp::AtLeast(2));
@@ -725,6 +754,10 @@ int main(int argc, char** argv) {
       ->check(structgp::GreaterThan(0));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));
   app.add_option("--out", f.out, "CSV file of the per-joint results");
+  app.add_option("--write-logs", f.write_logs,
+                 "write each case's training log (after --train-rows) and test logs to this "
+                 "existing folder as ROBOT_CASE_train.csv, ROBOT_CASE_test1.csv, ... (the CLI's "
+                 "format: structgp fit / evaluate reproduce a row)");
   app.add_flag("--quick", f.quick, "a CI-size run: two_link with friction, reference and rbd");
   app.add_flag("--check", f.check,
                "exit 3 unless every rbd model is within 1.1x of the noise and every lagk model "
