@@ -120,6 +120,33 @@ TEST(LagkModel, FitModelEqualsTheStepsByHand) {
   EXPECT_NE(json.find("\"euler_lagrange\""), std::string::npos) << json;
 }
 
+// What the library's search says of a part the log does not excite reaches the user: a log
+// whose accelerations are zero to rounding leaves link 1's kinetic energy (I_1 qdd_1) unseen,
+// and FitModel's summary (what `structgp fit` prints) warns, naming it.
+TEST(LagkModel, TheFitWarnsOfAPartTheLogDoesNotExcite) {
+  const sim::Dataset& d = Scenario().train;
+  const int n = 3, m = 120;
+  Matrix X = d.X.topRows(m);
+  for (Eigen::Index r = 0; r < m; ++r) {
+    for (int j = 0; j < n; ++j) X(r, 2 * n + j) = 1e-15 * ((r + j) % 3 - 1.0);
+  }
+  const FittedModel fit = FitModel(ParseModelSpec("lagk"), X, d.Y.topRows(m), Vector(),
+                                   QuickOptions());
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  int naming = 0;
+  for (const std::string& warning : fit.summary.warnings) {
+    naming += warning.find("kinetic energy of link 1 ") != std::string::npos ? 1 : 0;
+  }
+  EXPECT_EQ(naming, 1) << FitReport(fit.model, fit.summary);
+  // The same log with its accelerations: no such warning.
+  const FittedModel excited = FitModel(ParseModelSpec("lagk"), d.X.topRows(m), d.Y.topRows(m),
+                                       Vector(), QuickOptions());
+  ASSERT_TRUE(excited.summary.IsUsable()) << excited.summary.message;
+  for (const std::string& warning : excited.summary.warnings) {
+    EXPECT_EQ(warning.find("do not excite"), std::string::npos) << warning;
+  }
+}
+
 TEST(LagkModel, ModelFileRoundTripsExactAndThroughInducingStates) {
   const sim::Dataset& d = Scenario().train;
   const sim::Dataset& t = Scenario().test;
