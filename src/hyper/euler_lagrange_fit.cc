@@ -278,8 +278,10 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     if (summary.sigmas.size() == 1) {
       const std::vector<bool> unexcited = UnexcitedParts(evidence);
       std::string names;
+      int count = 0;
       for (size_t k = 0; k < P; ++k) {
         if (!unexcited[k]) continue;
+        ++count;
         const int part = searched[k];
         names += (names.empty() ? "" : ", ") +
                  std::string(part < n ? "kinetic energy of link " : "potential energy of link ") +
@@ -289,10 +291,11 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
         summary.warnings.push_back(
             "the " + std::to_string(hyper_rows.size()) +
             " hyper-parameter rows do not excite the " + names +
-            " (prior variance there at rounding level: e.g. no joint acceleration in the log); "
-            "its weight is the median of the other parts', not measured: predictions of "
-            "motions that need it carry that prior's uncertainty. Train on a log that "
-            "accelerates every joint.");
+            " (prior variance there at rounding level: e.g. no joint acceleration in the log); " +
+            (count == 1 ? std::string("its weight is") : std::string("their weights are")) +
+            " the median of the other parts', not measured: predictions of motions that need " +
+            (count == 1 ? "it" : "them") +
+            " carry that prior's uncertainty. Train on a log that excites every joint.");
       }
     }
     const LogHyperprior prior = Prior(options.prior, p, P);
