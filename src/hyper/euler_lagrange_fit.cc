@@ -118,23 +118,24 @@ std::vector<bool> UnexcitedParts(const EulerLagrangeEvidence& evidence) {
 }
 
 // The log of part k's mean prior variance on the evidence's rows (the scale a part's weight is
-// measured against when it is carried to the next sigma); 0 for a part they do not excite,
-// whose weight carries over as it is.
-double LogMeanPartVariance(const EulerLagrangeEvidence& evidence, size_t k) {
-  if (UnexcitedParts(evidence)[k]) return 0.0;
+// measured against when it is carried to the next sigma); 0 for a part they do not excite
+// (UnexcitedParts), whose weight carries over as it is.
+double LogMeanPartVariance(const EulerLagrangeEvidence& evidence,
+                           const std::vector<bool>& unexcited, size_t k) {
+  if (unexcited[k]) return 0.0;
   return std::log(std::max(evidence.MeanPartVariance(static_cast<int>(k)), 1e-300));
 }
 
 // The start of the search (log part weights of the searched parts, log noise per joint): the
 // torques' mean square shared by the parts, each at its own mean prior variance (a part the
-// rows do not excite: the median of the others' log weights), and the noise at 10% of each
-// joint's RMS torque.
-std::vector<double> Start(const EulerLagrangeEvidence& evidence, const ConstMatrixRef& Yh) {
+// rows do not excite, as UnexcitedParts says: the median of the others' log weights), and the
+// noise at 10% of each joint's RMS torque.
+std::vector<double> Start(const EulerLagrangeEvidence& evidence, const std::vector<bool>& unexcited,
+                          const ConstMatrixRef& Yh) {
   const int n = static_cast<int>(Yh.cols());
   const int P = static_cast<int>(evidence.parts().size());
   double spread = 0.0;
   for (int j = 0; j < n; ++j) spread += Rms(Yh, j) * Rms(Yh, j) / n;
-  const std::vector<bool> unexcited = UnexcitedParts(evidence);
   std::vector<double> p(static_cast<size_t>(P + n));
   std::vector<double> excited;
   for (int k = 0; k < P; ++k) {
@@ -200,7 +201,7 @@ EulerLagrangeGPHyperparameters EulerLagrangeStart(const ConstMatrixRef& X, const
   const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
   const std::vector<int> searched = SearchedParts(n, options.per_link);
   const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
-  return WithParameters(base, searched, Start(evidence, Yh));
+  return WithParameters(base, searched, Start(evidence, UnexcitedParts(evidence), Yh));
 }
 
 void EulerLagrangeGPOptions::Validate() const {
@@ -274,9 +275,9 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.evaluations_per_sigma.push_back(0);
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
     const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
-    std::vector<double> p = Start(evidence, Yh);
+    const std::vector<bool> unexcited = UnexcitedParts(evidence);
+    std::vector<double> p = Start(evidence, unexcited, Yh);
     if (summary.sigmas.size() == 1) {
-      const std::vector<bool> unexcited = UnexcitedParts(evidence);
       std::string names;
       int count = 0;
       for (size_t k = 0; k < P; ++k) {
@@ -312,7 +313,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     }
     if (!carried.empty()) {
       std::vector<double> warm = carried;
-      for (size_t k = 0; k < P; ++k) warm[k] -= LogMeanPartVariance(evidence, k);
+      for (size_t k = 0; k < P; ++k) warm[k] -= LogMeanPartVariance(evidence, unexcited, k);
       if (objective(warm) > objective(p)) {
         p = std::move(warm);
         summary.warm_start_per_sigma.back() = true;
@@ -335,7 +336,7 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.log_evidence_per_sigma.back() = -s.final_cost - log_prior;
     summary.log_prior_per_sigma.back() = log_prior;
     carried = p;
-    for (size_t k = 0; k < P; ++k) carried[k] += LogMeanPartVariance(evidence, k);
+    for (size_t k = 0; k < P; ++k) carried[k] += LogMeanPartVariance(evidence, unexcited, k);
     if (-s.final_cost > best) {
       best = -s.final_cost;
       best_h = WithParameters(base, searched, p);
