@@ -302,6 +302,72 @@ TEST(FitReport, ListsHyperparametersEvidenceAndCoefficients) {
   EXPECT_NE(fit.summary.BriefReport().find("converged"), std::string::npos);
 }
 
+// The summary's warnings that contain `text`.
+int WarningsWith(const FitSummary& summary, const std::string& text) {
+  int count = 0;
+  for (const auto& w : summary.warnings) count += w.find(text) != std::string::npos ? 1 : 0;
+  return count;
+}
+
+// A log that never moves a joint (static poses, or rows that all fall on via points) shows
+// none of the torques of its motion: the fit says which joints, for every model form.
+TEST(FitModel, WarnsOfJointsTheLogNeverMovesOrAccelerates) {
+  const sim::Dataset& d = Scenario().train;
+  FitOptions options;
+  options.method = HyperparameterMethod::kFixed;
+  const auto fit = [&options](const Matrix& X, const Matrix& Y) {
+    const FittedModel f = FitModel(Spec("motor+fri"), X, Y, Vector(), options);
+    EXPECT_TRUE(f.summary.IsUsable()) << f.summary.message;
+    return f.summary;
+  };
+  const FitSummary moving = fit(d.X, d.Y);
+  EXPECT_EQ(WarningsWith(moving, "never"), 0);
+
+  Matrix still2 = d.X;  // joint 2: qd and qdd zero
+  still2.col(3).setZero();
+  still2.col(5).setZero();
+  const FitSummary s2 = fit(still2, d.Y);
+  EXPECT_EQ(WarningsWith(s2, "joint 2 never moves in the 4000 rows (velocity zero on every row)"), 1)
+      << ::testing::PrintToString(s2.warnings);
+  EXPECT_EQ(WarningsWith(s2, "joint 1"), 0);
+  EXPECT_EQ(WarningsWith(s2, "accelerate"), 0);  // never moving says it
+
+  Matrix unaccelerated1 = d.X;  // joint 1: qdd at rounding level, qd as it was
+  unaccelerated1.col(4).setConstant(1e-15);
+  const FitSummary s1 = fit(unaccelerated1, d.Y);
+  EXPECT_EQ(WarningsWith(s1, "joint 1 never accelerates in the 4000 rows (acceleration RMS at "
+                             "most 1e-15 rad/s^2)"),
+            1)
+      << ::testing::PrintToString(s1.warnings);
+  EXPECT_EQ(WarningsWith(s1, "never moves"), 0);
+
+  Matrix still = d.X;  // static poses
+  still.rightCols(4).setZero();
+  const FitSummary s12 = fit(still, d.Y);
+  EXPECT_EQ(WarningsWith(s12, "joints 1 and 2 never move"), 1)
+      << ::testing::PrintToString(s12.warnings);
+  EXPECT_EQ(s12.warnings.size(), 1u);
+}
+
+// The text report of a regressor model (rbd, lag) prints the search's warnings and held-out
+// check as every other model's does.
+TEST(FitReport, PrintsTheWarningsOfRegressorModels) {
+  const sim::Dataset& d = Scenario().train;
+  Matrix X = d.X;
+  X.col(3).setZero();
+  X.col(5).setZero();
+  const FittedModel fit = FitModel(Spec("lag+fri"), X, d.Y, Vector());
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  ASSERT_NE(fit.model.regressor_map(), nullptr);
+  ASSERT_EQ(WarningsWith(fit.summary, "joint 2 never moves"), 1);
+  const std::string report = FitReport(fit.model, fit.summary);
+  EXPECT_NE(report.find("warning      joint 2 never moves"), std::string::npos) << report;
+  if (fit.summary.check.ran) {
+    EXPECT_NE(report.find("check        " + fit.summary.check.message), std::string::npos)
+        << report;
+  }
+}
+
 TEST(RowSubset, FloorOfKmOverM) {
   EXPECT_EQ(EvenlySpacedRows(10, 4), (std::vector<int>{0, 2, 5, 7}));
   EXPECT_EQ(EvenlySpacedRows(3, 5), (std::vector<int>{0, 1, 2}));

@@ -494,6 +494,73 @@ void CheckData(const RobotModel& model, const ConstMatrixRef& states, const Cons
   RequireFinite("FitModel t", t);
 }
 
+// A joint whose velocity (or acceleration) RMS over the log is at most this, in rad/s (rad/s^2;
+// m/s, m/s^2 for a prismatic joint), stands still (does not accelerate) as far as any model can
+// tell: a log of static poses, or rows that all fall on via points.
+constexpr double kStillJointRms = 1e-6;
+
+// "1", "1 and 3", "1, 2 and 3".
+std::string JointList(const std::vector<int>& joints) {
+  std::string text;
+  for (size_t k = 0; k < joints.size(); ++k) {
+    if (k > 0) text += k + 1 == joints.size() ? " and " : ", ";
+    text += std::to_string(joints[k] + 1);
+  }
+  return text;
+}
+
+// Warnings for joints the log never moves or never accelerates (kStillJointRms): the torques
+// that act only with motion (friction, Coriolis and centrifugal; inertia) are not in its data,
+// so whatever the model predicts of them on other motion rests on its prior alone.
+std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
+  const int N = static_cast<int>(states.cols() / 3);
+  const int rows = static_cast<int>(states.rows());
+  const auto rms = [&states, rows](int column) {
+    return std::sqrt(states.col(column).squaredNorm() / rows);
+  };
+  std::vector<int> still;         // velocity at rounding level
+  std::vector<int> unaccelerated;  // acceleration at rounding level, velocity not
+  double largest_velocity = 0.0;
+  double largest_acceleration = 0.0;
+  for (int j = 0; j < N; ++j) {
+    const double velocity = rms(N + j);
+    const double acceleration = rms(2 * N + j);
+    if (velocity <= kStillJointRms) {
+      still.push_back(j);
+      largest_velocity = std::max(largest_velocity, velocity);
+    } else if (acceleration <= kStillJointRms) {
+      unaccelerated.push_back(j);
+      largest_acceleration = std::max(largest_acceleration, acceleration);
+    }
+  }
+  const auto Size = [](const char* what, double largest, const char* unit) {
+    return largest == 0.0 ? Format("%s zero on every row", what)
+                          : Format("%s RMS at most %.2g %s", what, largest, unit);
+  };
+  const auto joints = [](const std::vector<int>& list) {
+    return (list.size() == 1 ? "joint " : "joints ") + JointList(list);
+  };
+  std::vector<std::string> warnings;
+  if (!still.empty()) {
+    warnings.push_back(Format(
+        "%s never move%s in the %d rows (%s): the fit sees none of the friction, inertial or "
+        "velocity (Coriolis, centrifugal) torques of %s, and the model's predictions of them on "
+        "motion rest on its prior alone",
+        joints(still).c_str(), still.size() == 1 ? "s" : "", rows,
+        Size("velocity", largest_velocity, "rad/s").c_str(),
+        still.size() == 1 ? "its motion" : "their motion"));
+  }
+  if (!unaccelerated.empty()) {
+    warnings.push_back(Format(
+        "%s never accelerate%s in the %d rows (%s): the fit sees no inertial torque of %s, and "
+        "the model's predictions of it on accelerating motion rest on its prior alone",
+        joints(unaccelerated).c_str(), unaccelerated.size() == 1 ? "s" : "", rows,
+        Size("acceleration", largest_acceleration, "rad/s^2").c_str(),
+        unaccelerated.size() == 1 ? "its acceleration" : "their accelerations"));
+  }
+  return warnings;
+}
+
 
 }  // namespace
 
@@ -649,6 +716,7 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   Fit fit(options, model);
   FitSummary& summary = fit.summary();
   summary.rows = static_cast<int>(X.rows());
+  for (std::string& warning : StillJointWarnings(states)) summary.warnings.push_back(std::move(warning));
   Hyperparameters h = model->DefaultHyperparameters(Yr);
   if (options.output_scaling == OutputScaling::kUnit) h.log_output_scale.setZero();
   std::string failure;
@@ -726,6 +794,16 @@ FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,
 
 namespace {
 
+// FitReport's lines on the search, the same for every model: how the hyper-parameters were
+// chosen, the notes, the held-out check and the warnings.
+void ReportSearch(const FitSummary& summary, std::ostream& os) {
+  os << "hyper        " << summary.method_description
+     << Format(", %.2f s", summary.total_seconds) << "\n";
+  for (const auto& note : summary.notes) os << "             " << note << "\n";
+  if (summary.check.ran) os << "check        " << summary.check.message << "\n";
+  for (const auto& warning : summary.warnings) os << "warning      " << warning << "\n";
+}
+
 // FitReport of an rbd model: the prior widths, each joint's noise, the friction and effect
 // coefficients, how many rigid-body directions the data identified, and whether the identified
 // inertial parameters are physically consistent.
@@ -741,9 +819,7 @@ void ReportRegressor(const RobotModel& model, const FitSummary& summary, std::os
                      rigid->chain().tip()
                : std::string(" of the Lagrangian, shared by all joints"))
      << ", regressor form)\n";
-  os << "hyper        " << summary.method_description
-     << Format(", %.2f s", summary.total_seconds) << "\n";
-  for (const auto& note : summary.notes) os << "             " << note << "\n";
+  ReportSearch(summary, os);
   std::vector<std::vector<std::string>> rows = {{"parameter", "value"}};
   const auto blocks = map.blocks();
   for (size_t b = 0; b < blocks.size(); ++b) {
@@ -816,11 +892,7 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
     os << "features     none: kernel model (" << ToString(gp.form()) << " form, "
        << gp.function_space()->size() << " stored points)\n";
   }
-  os << "hyper        " << summary.method_description
-     << Format(", %.2f s", summary.total_seconds) << "\n";
-  for (const auto& note : summary.notes) os << "             " << note << "\n";
-  if (summary.check.ran) os << "check        " << summary.check.message << "\n";
-  for (const auto& warning : summary.warnings) os << "warning      " << warning << "\n";
+  ReportSearch(summary, os);
   std::vector<std::vector<std::string>> rows = {{"parameter", "value"}};
   const Hyperparameters& h = model.hyperparameters();
   if (model.feature_map()) {
