@@ -327,7 +327,8 @@ TEST(FitModel, WarnsOfJointsTheLogNeverMovesOrAccelerates) {
   still2.col(3).setZero();
   still2.col(5).setZero();
   const FitSummary s2 = fit(still2, d.Y);
-  EXPECT_EQ(WarningsWith(s2, "joint 2 never moves in the 4000 rows (velocity zero on every row)"), 1)
+  EXPECT_EQ(
+      WarningsWith(s2, "joint 2 never moves in the 4000 rows (velocity zero on every row)"), 1)
       << ::testing::PrintToString(s2.warnings);
   EXPECT_EQ(WarningsWith(s2, "joint 1"), 0);
   EXPECT_EQ(WarningsWith(s2, "accelerate"), 0);  // never moving says it
@@ -362,10 +363,9 @@ TEST(FitReport, PrintsTheWarningsOfRegressorModels) {
   ASSERT_EQ(WarningsWith(fit.summary, "joint 2 never moves"), 1);
   const std::string report = FitReport(fit.model, fit.summary);
   EXPECT_NE(report.find("warning      joint 2 never moves"), std::string::npos) << report;
-  if (fit.summary.check.ran) {
-    EXPECT_NE(report.find("check        " + fit.summary.check.message), std::string::npos)
-        << report;
-  }
+  ASSERT_TRUE(fit.summary.check.ran);
+  EXPECT_NE(report.find("check        " + fit.summary.check.message), std::string::npos)
+      << report;
 }
 
 TEST(RowSubset, FloorOfKmOverM) {

@@ -533,7 +533,7 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
       largest_acceleration = std::max(largest_acceleration, acceleration);
     }
   }
-  const auto Size = [](const char* what, double largest, const char* unit) {
+  const auto size_text = [](const char* what, double largest, const char* unit) {
     return largest == 0.0 ? Format("%s zero on every row", what)
                           : Format("%s RMS at most %.2g %s", what, largest, unit);
   };
@@ -547,7 +547,7 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
         "velocity (Coriolis, centrifugal) torques of %s, and the model's predictions of them on "
         "motion rest on its prior alone",
         joints(still).c_str(), still.size() == 1 ? "s" : "", rows,
-        Size("velocity", largest_velocity, "rad/s").c_str(),
+        size_text("velocity", largest_velocity, "rad/s").c_str(),
         still.size() == 1 ? "its motion" : "their motion"));
   }
   if (!unaccelerated.empty()) {
@@ -555,7 +555,7 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
         "%s never accelerate%s in the %d rows (%s): the fit sees no inertial torque of %s, and "
         "the model's predictions of it on accelerating motion rest on its prior alone",
         joints(unaccelerated).c_str(), unaccelerated.size() == 1 ? "s" : "", rows,
-        Size("acceleration", largest_acceleration, "rad/s^2").c_str(),
+        size_text("acceleration", largest_acceleration, "rad/s^2").c_str(),
         unaccelerated.size() == 1 ? "its acceleration" : "their accelerations"));
   }
   return warnings;
@@ -716,7 +716,9 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   Fit fit(options, model);
   FitSummary& summary = fit.summary();
   summary.rows = static_cast<int>(X.rows());
-  for (std::string& warning : StillJointWarnings(states)) summary.warnings.push_back(std::move(warning));
+  for (std::string& warning : StillJointWarnings(states)) {
+    summary.warnings.push_back(std::move(warning));
+  }
   Hyperparameters h = model->DefaultHyperparameters(Yr);
   if (options.output_scaling == OutputScaling::kUnit) h.log_output_scale.setZero();
   std::string failure;
