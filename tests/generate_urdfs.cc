@@ -15,7 +15,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   namespace sim = structgp::sim;
-  for (const sim::Robot& robot : {sim::TwoLinkArm(), sim::ThreeLinkArm(), sim::Puma560(), sim::Panda()}) {
+  for (const sim::Robot& robot : {sim::TwoLinkArm(), sim::ThreeLinkArm(), sim::Puma560(), sim::Panda(),
+                                   sim::Ur10()}) {
     const std::string path = std::string(argv[1]) + "/" + robot.name() + ".urdf";
     std::ofstream out(path, std::ios::binary);
     out << sim::ToUrdf(robot);

@@ -45,7 +45,7 @@ std::string Trace(const Robot& robot, std::uint64_t seed) {
 
 // Every robot the tests run on: the fixed ones and random ones with N = 1..7.
 std::vector<Robot> AllRobots() {
-  std::vector<Robot> robots = {TwoLinkArm(), ThreeLinkArm(), Puma560(), Panda()};
+  std::vector<Robot> robots = {TwoLinkArm(), ThreeLinkArm(), Puma560(), Panda(), Ur10()};
   for (std::uint64_t seed : kSeeds) {
     for (int n = 1; n <= 7; ++n) robots.push_back(RandomRobot(n, seed));
   }

@@ -23,7 +23,7 @@ namespace {
 
 const std::string kUrdfDir = std::string(STRUCTGP_SOURCE_DIR) + "/data/urdf";
 
-std::vector<Robot> BuiltIn() { return {TwoLinkArm(), ThreeLinkArm(), Puma560(), Panda()}; }
+std::vector<Robot> BuiltIn() { return {TwoLinkArm(), ThreeLinkArm(), Puma560(), Panda(), Ur10()}; }
 
 // The DH robot with its armature removed (URDF has none).
 Robot WithoutArmature(const Robot& robot) {
@@ -106,6 +106,39 @@ TEST(SimUrdfTest, PandaHomePose) {
   // A physically valid robot: positive masses, inertias that satisfy the triangle
   // inequalities, M(q) positive definite.
   const RigidBodyChain chain = ToRigidBodyChain(panda);
+  const PhysicalConsistency consistency = CheckPhysicalConsistency(chain, chain.parameters());
+  EXPECT_TRUE(consistency.ok);
+  EXPECT_EQ(consistency.mass_matrix_pd_fraction, 1.0);
+}
+
+// The UR10's published table against hand statics: at q = 0 (stretched out horizontally)
+// frame 6 sits at (a2 + a3, -(d4 + d6), d1 - d5) and joints 2 and 3 hold the links' weight on
+// their lever arms along x (upper arm's centre of mass 0.612 - 0.38 m from joint 2, forearm's
+// 0.5723 - 0.24 m from joint 3, the wrist's 4.365 kg at the elbow's 0.5723 m beyond it); at
+// the upright pose (q2 = q4 = -pi/2) gravity loads no joint.
+TEST(SimUrdfTest, Ur10StretchedAndUpright) {
+  const Robot ur10 = Ur10();
+  ASSERT_EQ(ur10.num_joints(), 6);
+  KDL::ChainFkSolverPos_recursive fk(ur10.chain());
+  KDL::JntArray q(6);
+  KDL::Frame frame;
+  ASSERT_GE(fk.JntToCart(q, frame), 0);
+  EXPECT_NEAR(frame.p.x(), -0.612 - 0.5723, 1e-12);
+  EXPECT_NEAR(frame.p.y(), -(0.163941 + 0.0922), 1e-12);
+  EXPECT_NEAR(frame.p.z(), 0.1273 - 0.1157, 1e-12);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(6);
+  const Eigen::VectorXd stretched = ur10.InverseDynamics(zero, zero, zero);
+  const double wrist = 2.0 + 2.0 + 0.365;
+  const double shoulder = kStandardGravity * (12.7 * (0.612 - 0.38) + 4.27 * (0.612 + 0.5723 - 0.24) +
+                                              wrist * (0.612 + 0.5723));
+  const double elbow = kStandardGravity * (4.27 * (0.5723 - 0.24) + wrist * 0.5723);
+  EXPECT_NEAR(std::abs(stretched(1)), shoulder, 1e-9 * shoulder);
+  EXPECT_NEAR(std::abs(stretched(2)), elbow, 1e-9 * elbow);
+  EXPECT_NEAR(stretched(0), 0.0, 1e-12);
+  Eigen::VectorXd upright = zero;
+  upright(1) = upright(3) = -0.5 * 3.14159265358979323846;
+  EXPECT_LT(ur10.InverseDynamics(upright, zero, zero).norm(), 1e-12);
+  const RigidBodyChain chain = ToRigidBodyChain(ur10);
   const PhysicalConsistency consistency = CheckPhysicalConsistency(chain, chain.parameters());
   EXPECT_TRUE(consistency.ok);
   EXPECT_EQ(consistency.mass_matrix_pd_fraction, 1.0);

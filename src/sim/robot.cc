@@ -352,6 +352,33 @@ Robot Panda() {
   return Robot("panda", std::move(links), Eigen::Matrix3d::Identity(), DhConvention::kModified);
 }
 
+Robot Ur10() {
+  // Universal Robots' published standard-DH table and link masses and centres of mass (UR10,
+  // CB-series), centres of mass in DH link frame i.
+  constexpr double kA[6] = {0.0, -0.612, -0.5723, 0.0, 0.0, 0.0};
+  constexpr double kD[6] = {0.1273, 0.0, 0.0, 0.163941, 0.1157, 0.0922};
+  constexpr double kAlpha[6] = {0.5 * kPi, 0.0, 0.0, 0.5 * kPi, -0.5 * kPi, 0.0};
+  constexpr double kMass[6] = {7.1, 12.7, 4.27, 2.0, 2.0, 0.365};
+  constexpr double kCom[6][3] = {{0.021, 0.0, 0.027}, {0.38, 0.0, 0.158}, {0.24, 0.0, 0.068},
+                                 {0.0, 0.007, 0.018}, {0.0, 0.007, 0.018}, {0.0, 0.0, -0.026}};
+  // Not published: solid cylinders of the links' outer size (length, radius, axis in frame i):
+  // the shoulder housing along y_1, the upper arm and forearm along x, the wrists along y.
+  constexpr double kLength[6] = {0.18, 0.612, 0.572, 0.12, 0.12, 0.05};
+  constexpr double kRadius[6] = {0.075, 0.06, 0.045, 0.045, 0.045, 0.045};
+  constexpr int kAxis[6] = {1, 0, 0, 1, 1, 2};
+  std::vector<LinkParameters> links(6);
+  for (int i = 0; i < 6; ++i) {
+    LinkParameters& link = links[i];
+    link.a = kA[i];
+    link.alpha = kAlpha[i];
+    link.d = kD[i];
+    link.mass = kMass[i];
+    link.com = Eigen::Vector3d(kCom[i][0], kCom[i][1], kCom[i][2]);
+    link.inertia = RodInertia(kMass[i], kLength[i], kRadius[i], kAxis[i]);
+  }
+  return Robot("ur10", std::move(links));
+}
+
 Robot RobotByName(const std::string& name) {
   std::string key = name;
   std::replace(key.begin(), key.end(), '-', '_');
@@ -359,11 +386,12 @@ Robot RobotByName(const std::string& name) {
   if (key == "three_link") return ThreeLinkArm();
   if (key == "puma560") return Puma560();
   if (key == "panda") return Panda();
+  if (key == "ur10") return Ur10();
   if (key.size() == 7 && key.rfind("random", 0) == 0 && key[6] >= '1' && key[6] <= '7') {
     return RandomRobot(key[6] - '0', 1);
   }
   throw std::invalid_argument("unknown robot '" + name +
-                              "' (expected two_link, three_link, puma560, panda, random1 .. "
+                              "' (expected two_link, three_link, puma560, panda, ur10, random1 .. "
                               "random7)");
 }
 

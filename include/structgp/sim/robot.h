@@ -185,7 +185,18 @@ Robot Puma560();
 /// along -z of the base. No armature (the Panda's is not published with these). Name "panda".
 Robot Panda();
 
-/// The simulator's robots by name: "two_link", "three_link", "puma560", "panda", and
+/// A 6-joint arm with the kinematics and link masses of the Universal Robots UR10 (CB series):
+/// the standard-DH table and the masses and centres of mass that Universal Robots publishes
+/// ("Parameters for calculations of kinematics and dynamics": d1 = 0.1273, a2 = -0.612,
+/// a3 = -0.5723, d4 = 0.163941, d5 = 0.1157, d6 = 0.0922 m; twists pi/2, 0, 0, pi/2, -pi/2, 0;
+/// masses 7.1, 12.7, 4.27, 2.0, 2.0, 0.365 kg). Its joint angles are the controller's (all zero:
+/// the arm stretched out horizontally; q2 = q4 = -pi/2: upright). The rotational inertias are
+/// not published: those of solid cylinders of the links' size (an estimate, good as the prior
+/// of an rbd fit that the data correct). Joint 1 is vertical, gravity along -z of the base.
+/// No armature. Name "ur10".
+Robot Ur10();
+
+/// The simulator's robots by name: "two_link", "three_link", "puma560", "panda", "ur10", and
 /// "random1" .. "random7" (RandomRobot(N, 1)); '-' may stand for '_' ("two-link"). Throws
 /// std::invalid_argument naming the robot and listing the names.
 Robot RobotByName(const std::string& name);
