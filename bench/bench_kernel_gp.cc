@@ -13,7 +13,8 @@
 //  - BM_InverseFromFactor / BM_InverseBySolve: C^{-1} from its Cholesky factor by the two
 //    triangular recursions of internal/cholesky.h against solving C X = I with the factor
 //    (what both evidence gradients did before), at the sizes the evidences see (m = 2400:
-//    400 rows of a six-joint Euler-Lagrange GP).
+//    400 rows of a six-joint Euler-Lagrange GP), on 1 and 2 threads.
+//  - BM_Factorize: the factorisation itself (internal::Cholesky) on 1 and 2 threads.
 //
 //   build/bench/bench_kernel_gp --benchmark_repetitions=10 --benchmark_report_aggregates_only=true
 //
@@ -209,9 +210,26 @@ Matrix RandomFactor(int m) {
   return chol.ReleaseFactor();
 }
 
+// Args: m, threads.
 void BM_InverseFromFactor(benchmark::State& state) {
   const Matrix L = RandomFactor(static_cast<int>(state.range(0)));
-  for (auto _ : state) benchmark::DoNotOptimize(structgp::internal::InverseFromFactor(L).data());
+  const int threads = static_cast<int>(state.range(1));
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(structgp::internal::InverseFromFactor(L, threads).data());
+  }
+}
+
+// The factorisation of L L^T (internal::Cholesky, no jitter). Args: m, threads.
+void BM_Factorize(benchmark::State& state) {
+  const Matrix L = RandomFactor(static_cast<int>(state.range(0)));
+  const Matrix A = L * L.transpose();
+  structgp::internal::CholeskyOptions options{structgp::internal::JitterLadder::kNone};
+  options.num_threads = static_cast<int>(state.range(1));
+  structgp::internal::Cholesky chol(A.rows());
+  for (auto _ : state) {
+    if (!IsOk(chol.Factorize(A, options).status)) state.SkipWithError("not positive definite");
+    benchmark::DoNotOptimize(chol.factor().data());
+  }
 }
 
 void BM_InverseBySolve(benchmark::State& state) {
@@ -231,7 +249,16 @@ BENCHMARK(BM_Predict)->Arg(1000)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillise
 BENCHMARK(BM_StreamFactor)->Arg(1000)->Arg(2000)->Arg(4000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Fit)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_LogEvidenceGradient)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_InverseFromFactor)->Arg(1000)->Arg(2400)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_InverseFromFactor)
+    ->ArgNames({"m", "threads"})
+    ->ArgsProduct({{1000, 2400}, {1, 2}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Factorize)
+    ->ArgNames({"m", "threads"})
+    ->ArgsProduct({{1000, 2400}, {1, 2}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_InverseBySolve)->Arg(1000)->Arg(2400)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -14,12 +14,18 @@
 // states through p inducing states (DTC), 1 and 2 workers: time and peak memory, against the
 // (p N) x (m N) cross-covariance that the whole-matrix form held at once (whole_V_MiB).
 //
+// BM_EulerLagrangeEvidence: one evaluation of lagk's evidence and its gradient
+// (EulerLagrangeEvidence::Evaluate, what each step of its hyper-parameter search costs) for a
+// 6-joint arm on m rows (m N values: 400 rows are the CLI's default at six joints, 342 at
+// seven), every part searched, on 1 and 2 threads.
+//
 //   build/bench/bench_scale --benchmark_counters_tabular=true
 
 #include <benchmark/benchmark.h>
 #include <malloc.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -27,6 +33,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/random_feature_map.h"
@@ -167,6 +174,38 @@ void BM_EulerLagrangeDtc(benchmark::State& state) {
   state.counters["extra_MiB"] = extra;
   state.counters["whole_V_MiB"] = static_cast<double>(p * n) * static_cast<double>(m * n) * mib;
 }
+
+// Args: m, threads. Random states and torques of a 6-joint arm (only the cost matters).
+void BM_EulerLagrangeEvidence(benchmark::State& state) {
+  constexpr int n = 6;
+  const Eigen::Index m = state.range(0);
+  const int threads = static_cast<int>(state.range(1));
+  std::mt19937_64 rng(12345);
+  std::uniform_real_distribution<double> uniform(-2.0, 2.0);
+  const Matrix X = Matrix::NullaryExpr(m, 3 * n, [&]() { return uniform(rng); });
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return uniform(rng); });
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = 3.0;
+  h.part_weights = Vector::Ones(2 * n);
+  h.noise_std = Vector::Constant(n, 0.1);
+  std::vector<int> parts(2 * n);
+  for (int k = 0; k < 2 * n; ++k) parts[static_cast<size_t>(k)] = k;
+  const EulerLagrangeEvidence evidence(h, X, Y, parts, nullptr, threads);
+  const Vector log_parameters = Vector::Zero(evidence.num_parameters());
+  Vector gradient(evidence.num_parameters());
+  for (auto _ : state) {
+    const double value = evidence.Evaluate(log_parameters.data(), gradient.data());
+    if (!std::isfinite(value)) state.SkipWithError("evidence not finite");
+    benchmark::DoNotOptimize(value);
+  }
+  state.counters["values"] = static_cast<double>(m * n);
+}
+
+BENCHMARK(BM_EulerLagrangeEvidence)
+    ->ArgNames({"m", "threads"})
+    ->ArgsProduct({{400}, {1, 2}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_EulerLagrangeDtc)
     ->ArgNames({"m", "p", "workers"})

@@ -268,6 +268,8 @@ bool g_held_out_route = true;
 // to, at its sigma, as RunDiagnosisLoop does) or "scratch" (the whole sigma grid, as a first
 // fit).
 bool g_refit_from_model = true;
+// --threads: FitOptions::num_threads and the batch's of every fit of this program.
+int g_threads = 1;
 
 std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
                    int max_evidence_rows, const std::string& extra) {
@@ -325,6 +327,8 @@ Fit FitSpec(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vecto
   }
   options.max_evidence_rows = max_evidence_rows;
   options.model.rigid_body = std::move(chain);
+  options.num_threads = g_threads;
+  options.model.batch.num_threads = g_threads;
   try {
     FittedModel fitted = FitModel(spec, X, Y, t, options);
     std::fprintf(stderr, "    fit %s: %s; %d tightenings, %d evaluations, %d evidence rows\n",
@@ -1179,7 +1183,11 @@ int main(int argc, char** argv) {
   using structgp::AtLeast;
   using structgp::GreaterThan;
   AddListFlag(&app, "--parts", &f.parts, "sim (part A) and/or real (part B)");
-  AddListFlag(&app, "--robots", &f.robots, "puma560, panda, three_link, random7");
+  AddListFlag(&app, "--robots", &f.robots,
+              "the simulator's robots (sim::RobotByName): puma560, panda, ur10, three_link, "
+              "random1 .. random7");
+  AddFlag(&app, "--threads", &structgp::g_threads,
+          "threads of the fits and refits of this program (as structgp fit --threads)");
   AddListFlag(&app, "--cases", &f.cases,
               "none, spring, payload, coulomb, viscous, stribeck, cogging, drift, combined");
   AddListFlag(&app, "--models", &f.models, "models of part A: pol, rbd (simulated chain as URDF), ...");

@@ -101,6 +101,7 @@ struct Flags {
   int lagk_rows = 800;        // the Lagrangian kernel prototype's posterior rows
   int lagk_hyper_rows = 400;  // and its ML-II rows
   int lagk_inducing = 0;      // > 0: DTC posterior through this many inducing states
+  int threads = 1;            // FitOptions::num_threads, batch and lagk's: the fits' threads
   std::string lagk_inducing_rule = "cover";  // or "stride"
   std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
   std::string prior = "gaussian";  // of every type-II search (the CLI's --prior)
@@ -551,6 +552,8 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     }
     FitOptions options;
     options.evidence.prior.family = lagk_options.prior.family;  // --prior, for every search
+    options.num_threads = lagk_options.num_threads;              // --threads
+    options.model.batch.num_threads = lagk_options.num_threads;
     if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
       RigidBodyChain chain = ChainOf(robot, false);
       if (off) {
@@ -608,6 +611,7 @@ int Run(const Flags& flags, int argc, char** argv) {
                                    ? EulerLagrangeGPOptions::InducingRule::kEvenlySpaced
                                    : EulerLagrangeGPOptions::InducingRule::kCoverStates;
   lagk_options.sigmas = f.lagk_sigmas;
+  lagk_options.num_threads = f.threads;
   if (!FromString(f.prior, &lagk_options.prior.family)) {
     throw std::invalid_argument("--prior: expected gaussian, student_t or none, got '" + f.prior + "'");
   }
@@ -736,6 +740,10 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--lagk-inducing", &f.lagk_inducing,
                     "lagk's posterior through this many inducing states (DTC; 0: exact)")
       ->check(structgp::AtLeast(0));
+  structgp::AddFlag(&app, "--threads", &f.threads,
+                    "threads of every fit (as structgp fit --threads: the searches' evidence "
+                    "and statistics, lagk's posterior)")
+      ->check(structgp::AtLeast(1));
   app.add_option("--lagk-inducing-rule", f.lagk_inducing_rule,
                  "how lagk's inducing states are chosen: cover (the states) or stride (in time)")
       ->check(CLI::IsMember({"cover", "stride"}));

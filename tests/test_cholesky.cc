@@ -293,6 +293,75 @@ TEST(Cholesky, InverseFromFactorEqualsSolvingForTheIdentity) {
   EXPECT_THROW(internal::InverseFromFactor(Matrix::Zero(3, 2)), std::invalid_argument);
 }
 
+// More than one thread (internal/cholesky.h): from 256 rows on a blocked factorisation and a
+// column-split inverse on the threads. Against the backward-error bound and the one-thread
+// results (Eigen's LLT, the recursive inverse): equal up to rounding at every thread count and
+// bit for bit among thread counts from two on, on sizes around the threshold and the panel
+// width, with the ladder and failures as one thread reports them.
+TEST(Cholesky, ThreadsGiveTheOneThreadFactorAndInverseUpToRounding) {
+  std::mt19937_64 rng = SeededRng(43);
+  std::uniform_real_distribution<double> log_eigenvalue(-2.0, 2.0);
+  for (int n : {255, 256, 300, 517}) {
+    const Vector eigenvalues =
+        Vector::NullaryExpr(n, [&]() { return std::pow(10.0, log_eigenvalue(rng)); });
+    const Matrix A = 2.5e3 * WithSpectrum(eigenvalues, &rng);
+    Cholesky one;
+    ASSERT_EQ(one.Factorize(A, {JitterLadder::kNone}).status, Status::kOk);
+    const Matrix inverse_one = internal::InverseFromFactor(one.factor());
+    CholeskyOptions two_threads{JitterLadder::kNone};
+    two_threads.num_threads = 2;
+    Cholesky two;
+    ASSERT_EQ(two.Factorize(A, two_threads).status, Status::kOk);
+    const Matrix inverse_two = internal::InverseFromFactor(two.factor(), 2);
+    for (int threads : {2, 3, 8}) {
+      SCOPED_TRACE("n = " + std::to_string(n) + ", threads = " + std::to_string(threads));
+      CholeskyOptions options{JitterLadder::kNone};
+      options.num_threads = threads;
+      Cholesky many;
+      const CholeskyResult result = many.Factorize(A, options);
+      ASSERT_EQ(result.status, Status::kOk);
+      EXPECT_EQ(result.steps, 0);
+      ExpectValidFactor(many.factor());
+      ExpectReconstructs(many.factor(), A);
+      const double scale = one.factor().cwiseAbs().maxCoeff();
+      EXPECT_LE((many.factor() - one.factor()).cwiseAbs().maxCoeff(), 1e4 * n * kEps * scale);
+      Matrix L = many.factor();
+      L.triangularView<Eigen::StrictlyUpper>().setConstant(std::nan(""));
+      const Matrix inverse = internal::InverseFromFactor(L, threads);
+      EXPECT_EQ((inverse - inverse.transpose()).cwiseAbs().maxCoeff(), 0.0);
+      const double inverse_scale = inverse_one.cwiseAbs().maxCoeff();
+      EXPECT_LE((inverse - inverse_one).cwiseAbs().maxCoeff(), 1e4 * n * kEps * inverse_scale);
+      EXPECT_LE((inverse * A - Matrix::Identity(n, n)).cwiseAbs().maxCoeff(), 1e4 * n * kEps);
+      // The threads share fixed chunks: the same bits from two threads on.
+      EXPECT_TRUE(many.factor() == two.factor());
+      EXPECT_TRUE(inverse == inverse_two);
+    }
+  }
+  // The ladder on threads: a Gram matrix of rank 40 at n = 300 needs the same rung as on one
+  // thread; an indefinite matrix ends in the status and a zero factor.
+  const Matrix features = RandomMatrix(300, 40, &rng);
+  const Matrix gram = features * features.transpose();
+  Cholesky one;
+  const CholeskyResult one_result = one.Factorize(gram);
+  ASSERT_EQ(one_result.status, Status::kOk);
+  ASSERT_GT(one_result.steps, 0);
+  CholeskyOptions options;
+  options.num_threads = 2;
+  Cholesky many;
+  const CholeskyResult result = many.Factorize(gram, options);
+  ASSERT_EQ(result.status, Status::kOk);
+  EXPECT_EQ(result.steps, one_result.steps);
+  EXPECT_EQ(result.jitter, one_result.jitter);
+  Matrix jittered = gram;
+  jittered.diagonal() = (1.0 + result.jitter) * gram.diagonal();
+  ExpectReconstructs(many.factor(), jittered);
+  Vector spectrum = Vector::Ones(300);
+  spectrum[150] = -1.0;
+  const CholeskyResult failed = many.Factorize(WithSpectrum(spectrum, &rng), options);
+  EXPECT_EQ(failed.status, Status::kNotPositiveDefinite);
+  EXPECT_EQ(many.factor().cwiseAbs().maxCoeff(), 0.0);
+}
+
 TEST(Cholesky, BadArgumentsThrowNamingTheProblem) {
   Cholesky chol;
   try {
@@ -307,6 +376,16 @@ TEST(Cholesky, BadArgumentsThrowNamingTheProblem) {
   EXPECT_THROW(chol.Factorize(Matrix::Identity(2, 2), options), std::invalid_argument);
   options.min_jitter = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(chol.Factorize(Matrix::Identity(2, 2), options), std::invalid_argument);
+  options.min_jitter = 0.0;
+  options.num_threads = 0;
+  try {
+    chol.Factorize(Matrix::Identity(2, 2), options);
+    FAIL() << "num_threads = 0 was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("num_threads: expected >= 1, got 0"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(internal::InverseFromFactor(Matrix::Identity(2, 2), 0), std::invalid_argument);
   // The empty matrix is positive definite.
   EXPECT_EQ(chol.Factorize(Matrix(0, 0)).status, Status::kOk);
 }

@@ -488,6 +488,51 @@ TEST(EulerLagrangeGP, EvidenceGradientMatchesCentralDifferences) {
   }
 }
 
+// The evidence on several threads (EulerLagrangeEvidence's num_threads: the covariance's
+// columns, the blocked factorisation and inverse from 256 values on, the parts' gradient terms)
+// against one thread, at 360 values (above the threshold) and 24 (below it): the value and every
+// gradient component equal up to rounding, and bit for bit among thread counts from two on (the
+// threads share fixed chunks of the work).
+TEST(EulerLagrangeGP, EvidenceOnThreadsEqualsTheOneThreadEvidence) {
+  std::mt19937 rng(10);
+  const int n = 3;
+  for (int m : {120, 8}) {
+    const EulerLagrangeGPHyperparameters h = RandomHyper(n, true, &rng);
+    const Matrix X = RandomStates(m, n, &rng);
+    std::normal_distribution<double> normal;
+    const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return 3.0 * normal(rng); });
+    const std::vector<int> parts = {0, 1, 2, 3, 4, 5};
+    Vector log_parameters(3 * n);
+    log_parameters << h.part_weights.array().log(), h.noise_std.array().log();
+    const EulerLagrangeEvidence one(h, X, Y, parts, nullptr, 1);
+    Vector g_one(3 * n);
+    const double value_one = one.Evaluate(log_parameters.data(), g_one.data());
+    ASSERT_TRUE(std::isfinite(value_one));
+    const EulerLagrangeEvidence two(h, X, Y, parts, nullptr, 2);
+    Vector g_two(3 * n);
+    const double value_two = two.Evaluate(log_parameters.data(), g_two.data());
+    for (int threads : {2, 3}) {
+      SCOPED_TRACE("m = " + std::to_string(m) + ", threads = " + std::to_string(threads));
+      const EulerLagrangeEvidence many(h, X, Y, parts, nullptr, threads);
+      Vector g(3 * n);
+      const double value = many.Evaluate(log_parameters.data(), g.data());
+      EXPECT_NEAR(value, value_one, 1e-10 * std::abs(value_one));
+      for (int k = 0; k < 3 * n; ++k) {
+        // A gradient component is the difference of two far larger terms (tr(C^-1 A) and
+        // alpha^T A alpha), so the factor's rounding shows at 1e-8 of it.
+        EXPECT_NEAR(g[k], g_one[k], 1e-6 * (1.0 + std::abs(g_one[k]))) << "parameter " << k;
+      }
+      EXPECT_EQ(many.Evaluate(log_parameters.data(), nullptr), value);
+      EXPECT_EQ(value, value_two);
+      EXPECT_TRUE(g == g_two);
+    }
+  }
+  const EulerLagrangeGPHyperparameters h = RandomHyper(n, false, &rng);
+  EXPECT_THROW(EulerLagrangeEvidence(h, RandomStates(4, n, &rng), Matrix::Zero(4, n), {0},
+                                     nullptr, 0),
+               std::invalid_argument);
+}
+
 // Torques of a 3-joint chain drawn from the kernel's own class (the regressor twin's prior at
 // sigma 3 with a weight per part): at `rows` random states with 5% noise (Y), and noiseless at
 // `test_rows` more.

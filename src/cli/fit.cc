@@ -64,8 +64,9 @@ class FitCommand : public Command {
         ->check(CLI::Range(10, 1000000))
         ->capture_default_str();
     cmd->add_option("--threads", options_.num_threads,
-                    "Threads accumulating Phi^T Phi of feature-map models (large data sets) and "
-                    "conditioning lagk on every row through its inducing states")
+                    "Threads accumulating Phi^T Phi of feature-map models (large data sets), "
+                    "evaluating lagk's evidence in its hyper-parameter search, and conditioning "
+                    "lagk on every row through its inducing states")
         ->check(CLI::Range(1, 256))
         ->capture_default_str();
     cmd->add_option("--max-kernel-rows", max_kernel_rows_,

@@ -5,17 +5,102 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <Eigen/Cholesky>
+
+#include "structgp/internal/workers.h"
 
 namespace structgp {
 namespace internal {
 namespace {
 
+// Below this size a factorisation or inverse runs on the calling thread whatever num_threads.
+constexpr Eigen::Index kParallelMinSize = 256;
+
+// Width of the column (or row) chunks that the threads share: fixed, so that what each chunk
+// computes, and so the result, does not depend on the number of threads.
+constexpr Eigen::Index kChunk = 96;
+
+// Columns factorised per step of the blocked factorisation (its trailing updates are
+// products of this inner size).
+constexpr Eigen::Index kPanel = 192;
+
+struct Chunk {
+  Eigen::Index begin, size;
+};
+
+// [0, n) in chunks of kChunk (the last one shorter).
+std::vector<Chunk> Chunks(Eigen::Index n) {
+  std::vector<Chunk> chunks;
+  for (Eigen::Index c = 0; c < n; c += kChunk) chunks.push_back({c, std::min(kChunk, n - c)});
+  return chunks;
+}
+
+// work(chunk) for every chunk, on at most num_threads threads: the chunks, by decreasing
+// cost(chunk), each to the thread with the least cost so far (a fixed assignment; each chunk's
+// result is the same whichever thread computes it).
+template <typename Cost, typename Work>
+void RunChunks(const std::vector<Chunk>& chunks, int num_threads, Cost&& cost, Work&& work) {
+  const int workers = static_cast<int>(
+      std::max<size_t>(1, std::min<size_t>(static_cast<size_t>(num_threads), chunks.size())));
+  std::vector<size_t> order(chunks.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return cost(chunks[a]) > cost(chunks[b]);
+  });
+  std::vector<std::vector<size_t>> mine(static_cast<size_t>(workers));
+  std::vector<double> load(static_cast<size_t>(workers), 0.0);
+  for (size_t i : order) {
+    const size_t w = static_cast<size_t>(std::min_element(load.begin(), load.end()) - load.begin());
+    mine[w].push_back(i);
+    load[w] += cost(chunks[i]);
+  }
+  RunWorkers(workers, [&](int w) {
+    for (size_t i : mine[static_cast<size_t>(w)]) work(chunks[i]);
+  });
+}
+
+// Right-looking blocked LLT of the lower triangle of M, in place (the strictly upper part is
+// scratch): per panel of kPanel columns, Eigen's LLT of the diagonal block, the panel below it
+// by a triangular solve (by chunks of rows), then the trailing lower triangle minus the panel
+// times its transpose (by chunks of columns, each from its diagonal down). false when a
+// diagonal block is not positive definite.
+bool ParallelLltInPlace(Eigen::Ref<Matrix> M, int num_threads) {
+  const Eigen::Index n = M.rows();
+  for (Eigen::Index k = 0; k < n; k += kPanel) {
+    const Eigen::Index b = std::min(kPanel, n - k);
+    const Eigen::Index rest = n - k - b;
+    Eigen::Ref<Matrix> diagonal = M.block(k, k, b, b);
+    Eigen::LLT<Eigen::Ref<Matrix>, Eigen::Lower> llt(diagonal);
+    if (llt.info() != Eigen::Success) return false;
+    if (rest == 0) break;
+    const auto L11 = M.block(k, k, b, b).triangularView<Eigen::Lower>();
+    auto panel = M.block(k + b, k, rest, b);
+    const std::vector<Chunk> chunks = Chunks(rest);
+    // L21 = A21 L11^{-T}, rows independent.
+    RunChunks(
+        chunks, num_threads, [](const Chunk& c) { return static_cast<double>(c.size); },
+        [&](const Chunk& c) {
+          auto rows = panel.middleRows(c.begin, c.size);
+          L11.transpose().solveInPlace<Eigen::OnTheRight>(rows);
+        });
+    // A22 -= L21 L21^T on the lower triangle.
+    RunChunks(
+        chunks, num_threads,
+        [&](const Chunk& c) { return static_cast<double>(rest - c.begin) * c.size; },
+        [&](const Chunk& c) {
+          M.block(k + b + c.begin, k + b + c.begin, rest - c.begin, c.size).noalias() -=
+              panel.middleRows(c.begin, rest - c.begin) * panel.middleRows(c.begin, c.size).transpose();
+        });
+  }
+  return true;
+}
+
 // One attempt: factor = lower triangle of A with diagonal A_kk + delta s_k, factorised in
 // place; true when accepted (the test of the header, against the unjittered A_kk).
 bool Attempt(const ConstMatrixRef& A, JitterScale scale, double mean_diagonal, double delta,
-             Matrix* factor) {
+             int num_threads, Matrix* factor) {
   const Eigen::Index n = A.rows();
   factor->triangularView<Eigen::Lower>() = A.triangularView<Eigen::Lower>();
   if (delta > 0.0) {
@@ -25,10 +110,14 @@ bool Attempt(const ConstMatrixRef& A, JitterScale scale, double mean_diagonal, d
       factor->diagonal().array() += delta * mean_diagonal;
     }
   }
-  // In place: Eigen's LLT on a Ref overwrites the lower triangle of *factor with L (and reads
-  // nothing else).
-  Eigen::LLT<Eigen::Ref<Matrix>, Eigen::Lower> llt(*factor);
-  if (llt.info() != Eigen::Success) return false;
+  if (num_threads > 1 && n >= kParallelMinSize) {
+    if (!ParallelLltInPlace(*factor, num_threads)) return false;
+  } else {
+    // In place: Eigen's LLT on a Ref overwrites the lower triangle of *factor with L (and reads
+    // nothing else).
+    Eigen::LLT<Eigen::Ref<Matrix>, Eigen::Lower> llt(*factor);
+    if (llt.info() != Eigen::Success) return false;
+  }
   for (Eigen::Index k = 0; k < n; ++k) {
     const double pivot = (*factor)(k, k);
     if (!std::isfinite(pivot) || !(pivot * pivot >= kMinPivotRatio * A(k, k))) return false;
@@ -80,10 +169,38 @@ void LowerTransposeTimesSelfInPlace(Eigen::Ref<Matrix> M) {
 
 }  // namespace
 
-Matrix InverseFromFactor(const ConstMatrixRef& L) {
+Matrix InverseFromFactor(const ConstMatrixRef& L, int num_threads) {
   if (L.rows() != L.cols()) {
     throw std::invalid_argument("InverseFromFactor: expected a square factor, got " +
                                 std::to_string(L.rows()) + " x " + std::to_string(L.cols()));
+  }
+  if (num_threads < 1) {
+    throw std::invalid_argument("InverseFromFactor: expected num_threads >= 1, got " +
+                                std::to_string(num_threads));
+  }
+  const Eigen::Index n = L.rows();
+  if (num_threads > 1 && n >= kParallelMinSize) {
+    // W = L^{-1} by chunks of columns (column c of W is zero above row c: L[c:, c:] W[c:, c] =
+    // e), then the lower triangle of W^T W by chunks of columns (column c: W[c:, c:]^T W[c:, c]).
+    const std::vector<Chunk> chunks = Chunks(n);
+    const auto cost = [n](const Chunk& c) {
+      const double rows = static_cast<double>(n - c.begin);
+      return rows * rows * static_cast<double>(c.size);
+    };
+    Matrix W = Matrix::Zero(n, n);
+    RunChunks(chunks, num_threads, cost, [&](const Chunk& c) {
+      auto X = W.block(c.begin, c.begin, n - c.begin, c.size);
+      X.topRows(c.size).setIdentity();
+      L.block(c.begin, c.begin, n - c.begin, n - c.begin).triangularView<Eigen::Lower>().solveInPlace(X);
+    });
+    Matrix M(n, n);
+    RunChunks(chunks, num_threads, cost, [&](const Chunk& c) {
+      M.block(c.begin, c.begin, n - c.begin, c.size).noalias() =
+          W.block(c.begin, c.begin, n - c.begin, n - c.begin).triangularView<Eigen::Lower>().transpose() *
+          W.block(c.begin, c.begin, n - c.begin, c.size);
+    });
+    M.triangularView<Eigen::StrictlyUpper>() = M.transpose();
+    return M;
   }
   Matrix M = L.triangularView<Eigen::Lower>();
   InvertLowerInPlace(M);
@@ -103,6 +220,10 @@ CholeskyResult Cholesky::Factorize(const ConstMatrixRef& A, const CholeskyOption
     throw std::invalid_argument("CholeskyOptions::min_jitter: expected a finite value >= 0, got " +
                                 std::to_string(options.min_jitter));
   }
+  if (options.num_threads < 1) {
+    throw std::invalid_argument("CholeskyOptions::num_threads: expected >= 1, got " +
+                                std::to_string(options.num_threads));
+  }
   const Eigen::Index n = A.rows();
   if (factor_.rows() != n || factor_.cols() != n) factor_.resize(n, n);
   result_ = CholeskyResult();
@@ -111,7 +232,7 @@ CholeskyResult Cholesky::Factorize(const ConstMatrixRef& A, const CholeskyOption
       options.scale == JitterScale::kMeanDiagonal && diagonal_finite ? MeanDiagonal(A) : 0.0;
 
   double delta = options.min_jitter;
-  bool accepted = diagonal_finite && Attempt(A, options.scale, mean_diagonal, delta, &factor_);
+  bool accepted = diagonal_finite && Attempt(A, options.scale, mean_diagonal, delta, options.num_threads, &factor_);
   if (!accepted && diagonal_finite && options.ladder == JitterLadder::kClimb) {
     // The rungs, computed by repeated multiplication (the values fit_jitter() has always
     // reported), skipping those at or below min_jitter.
@@ -120,7 +241,7 @@ CholeskyResult Cholesky::Factorize(const ConstMatrixRef& A, const CholeskyOption
       if (rung <= options.min_jitter) continue;
       delta = rung;
       ++result_.steps;
-      accepted = Attempt(A, options.scale, mean_diagonal, delta, &factor_);
+      accepted = Attempt(A, options.scale, mean_diagonal, delta, options.num_threads, &factor_);
     }
   }
   result_.jitter = delta;

@@ -402,6 +402,7 @@ EulerLagrangeGPOptions EulerLagrangeOptions(const FitOptions& options, const Rob
   o.effects = model.effect_map();
   o.effect_prior_variance = model.effect_prior_variance();
   o.inducing_states = 0;
+  o.num_threads = options.num_threads;
   const int cap = std::max(1, options.max_euler_lagrange_evidence_values / model.num_joints());
   o.hyperparameter_rows = o.hyperparameter_rows > 0 ? std::min(o.hyperparameter_rows, cap) : cap;
   return o;

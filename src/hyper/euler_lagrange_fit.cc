@@ -274,7 +274,8 @@ EulerLagrangeGPSummary FitEulerLagrangeGP(const ConstMatrixRef& X, const ConstMa
     summary.warm_start_per_sigma.push_back(false);
     summary.evaluations_per_sigma.push_back(0);
     const EulerLagrangeGPHyperparameters base = Base(X, Y, options, sigma);
-    const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get());
+    const EulerLagrangeEvidence evidence(base, Xh, Yh, searched, options.effects.get(),
+                                         options.num_threads);
     const std::vector<bool> unexcited = UnexcitedParts(evidence);
     std::vector<double> p = Start(evidence, unexcited, Yh);
     if (summary.sigmas.size() == 1) {

@@ -122,18 +122,32 @@ Matrix Covariance(const EulerLagrangeKernel& kernel, const EulerLagrangeGPHyperp
 }
 
 // log p(y) for C = sum_k w_k parts[k] + F + diag(noise^2), and its gradient in (log w_k...,
-// log noise_j...). -infinity when C is not positive definite.
+// log noise_j...). -infinity when C is not positive definite. On num_threads threads: C's
+// columns, the factorisation and the inverse (internal/cholesky.h: the same for every thread
+// count from two on, equal to one thread's up to rounding), and the parts' gradient terms
+// (each summed by one thread in a fixed order).
 double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F, const Vector& y,
-                       const double* log_w, const double* log_noise, double* gradient) {
+                       const double* log_w, const double* log_noise, double* gradient,
+                       int num_threads) {
   const size_t P = parts.size();
-  Matrix C = F;
-  for (size_t k = 0; k < P; ++k) C += std::exp(log_w[k]) * parts[k];
+  const Eigen::Index size = F.rows();
+  Matrix C(size, size);
+  const int workers = static_cast<int>(
+      std::max<Eigen::Index>(1, std::min<Eigen::Index>(num_threads, size / 64)));
+  internal::RunWorkers(workers, [&](int w) {
+    const Eigen::Index c0 = size * w / workers, c1 = size * (w + 1) / workers;
+    auto columns = C.middleCols(c0, c1 - c0);
+    columns = F.middleCols(c0, c1 - c0);
+    for (size_t k = 0; k < P; ++k) columns += std::exp(log_w[k]) * parts[k].middleCols(c0, c1 - c0);
+  });
   for (Eigen::Index r = 0; r < C.rows(); ++r) C(r, r) += std::exp(2.0 * log_noise[r % n]);
   // An evidence is exact or none: a factor the library's acceptance test refuses (a pivot lost
   // to rounding, as when one part's weight dwarfs the noise by 1e13 or more) is no value, so
   // that a search cannot walk into hyper-parameters whose evidence is rounding error.
   internal::Cholesky llt;
-  if (!IsOk(llt.Factorize(C, {internal::JitterLadder::kNone}).status)) {
+  internal::CholeskyOptions factor_options{internal::JitterLadder::kNone};
+  factor_options.num_threads = num_threads;
+  if (!IsOk(llt.Factorize(C, factor_options).status)) {
     return -std::numeric_limits<double>::infinity();
   }
   const Vector alpha = llt.solve(y);
@@ -142,13 +156,10 @@ double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F,
   const double value = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
   if (!std::isfinite(value)) return -std::numeric_limits<double>::infinity();
   if (gradient != nullptr) {
-    const Matrix Ci = internal::InverseFromFactor(llt.factor());
-    // d log p / d log w = -1/2 w (tr(C^-1 A) - alpha^T A alpha).
-    for (size_t k = 0; k < P; ++k) {
-      const Matrix& A = parts[k];
-      gradient[k] = -0.5 * std::exp(log_w[k]) * (Ci.cwiseProduct(A).sum() - alpha.dot(A * alpha));
-    }
-    // d C / d log s_j = 2 s_j^2 on joint j's diagonal.
+    Matrix Ci = internal::InverseFromFactor(llt.factor(), num_threads);
+    // d C / d log s_j = 2 s_j^2 on joint j's diagonal: its term reads C^-1's diagonal. Then,
+    // with G = C^-1 - alpha alpha^T (in C^-1's place), d log p / d log w = -1/2 w (tr(C^-1 A)
+    // - alpha^T A alpha) = -1/2 w sum(G .* A): one pass over each part.
     for (int j = 0; j < n; ++j) {
       double tr = 0.0, aa = 0.0;
       for (Eigen::Index r = j; r < C.rows(); r += n) {
@@ -157,6 +168,18 @@ double EvidenceOfParts(int n, const std::vector<Matrix>& parts, const Matrix& F,
       }
       gradient[P + static_cast<size_t>(j)] = -(tr - aa) * std::exp(2.0 * log_noise[j]);
     }
+    Matrix& G = Ci;
+    internal::RunWorkers(workers, [&](int w) {
+      const Eigen::Index c0 = size * w / workers, c1 = size * (w + 1) / workers;
+      G.middleCols(c0, c1 - c0).noalias() -= alpha * alpha.segment(c0, c1 - c0).transpose();
+    });
+    const int part_workers = static_cast<int>(std::max<size_t>(
+        1, std::min<size_t>(static_cast<size_t>(workers), P)));
+    internal::RunWorkers(part_workers, [&](int w) {
+      for (size_t k = static_cast<size_t>(w); k < P; k += static_cast<size_t>(part_workers)) {
+        gradient[k] = -0.5 * std::exp(log_w[k]) * G.cwiseProduct(parts[k]).sum();
+      }
+    });
   }
   return value;
 }
@@ -231,9 +254,11 @@ EulerLagrangeGP::EulerLagrangeGP(EulerLagrangeGPHyperparameters hyperparameters,
 
 EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base,
                                              const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                                             std::vector<int> parts, const FeatureMap* effects)
-    : n_(base.num_joints()), parts_(std::move(parts)) {
+                                             std::vector<int> parts, const FeatureMap* effects,
+                                             int num_threads)
+    : n_(base.num_joints()), parts_(std::move(parts)), num_threads_(num_threads) {
   base.Validate();
+  Require(num_threads >= 1, "expected num_threads >= 1, got " + std::to_string(num_threads));
   CheckData(X, Y, n_, CheckEffects(base, effects));
   std::vector<bool> searched(static_cast<size_t>(2 * n_), false);
   for (int p : parts_) {
@@ -263,7 +288,7 @@ EulerLagrangeEvidence::EulerLagrangeEvidence(const EulerLagrangeGPHyperparameter
 
 double EulerLagrangeEvidence::Evaluate(const double* log_parameters, double* gradient) const {
   return EvidenceOfParts(n_, grams_, fixed_, y_, log_parameters, log_parameters + parts_.size(),
-                         gradient);
+                         gradient, num_threads_);
 }
 
 double EulerLagrangeGP::LogEvidence(const EulerLagrangeGPHyperparameters& h,

@@ -118,8 +118,10 @@ struct FitOptions {
   /// kCrossValidation: noise levels sigma_n tried, relative to each joint's torque scale.
   std::vector<double> cv_noise_levels = {0.3, 0.1, 0.03, 0.01, 0.003, 0.001};
 
-  /// Threads accumulating Phi^T Phi of feature-map models for the hyper-parameter search
-  /// (the final fit uses RobotModelOptions::batch).
+  /// Threads of the hyper-parameter search: accumulating Phi^T Phi of feature-map models, and
+  /// each evidence evaluation of lagk's search (EulerLagrangeGPOptions::num_threads, which
+  /// this replaces; the result equals the one-thread result up to rounding). The final fit
+  /// uses RobotModelOptions::batch.
   int num_threads = 1;
 
   /// Called with every progress line and after every LBFGS iteration; kAbort stops the fit

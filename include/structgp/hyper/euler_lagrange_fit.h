@@ -42,7 +42,8 @@ struct EulerLagrangeGPOptions {
   /// states) or kEvenlySpaced (spread over time, which can alias with a periodic trajectory).
   using InducingRule = EulerLagrangeGP::InducingRule;
   InducingRule inducing_rule = InducingRule::kCoverStates;
-  /// Workers of the DTC's accumulation over the training states (EulerLagrangeGP::Condition).
+  /// Threads of each evidence evaluation of the search (EulerLagrangeEvidence) and workers of
+  /// the DTC's accumulation over the training states (EulerLagrangeGP::Condition).
   int num_threads = 1;
   int max_iterations = 80;
   /// The prior on the searched log values (type-II MAP, as FitModel's other searches): each

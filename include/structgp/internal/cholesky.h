@@ -29,9 +29,9 @@
 /// false.
 ///
 /// Cost and memory. O(n^3 / 3) per attempt plus O(n^2) copies; one n x n matrix. Factorize of
-/// a matrix of the size given to the constructor allocates nothing itself; Eigen's blocked LLT
-/// that it calls allocates its own GEMM workspace above a few hundred rows (none measured up to
-/// n = 300). No real-time path factorises.
+/// a matrix of the size given to the constructor, on one thread, allocates nothing itself;
+/// Eigen's blocked LLT that it calls allocates its own GEMM workspace above a few hundred rows
+/// (none measured up to n = 300). No real-time path factorises.
 
 #include <utility>
 
@@ -73,6 +73,12 @@ struct CholeskyOptions {
   /// A relative jitter always added (a regularisation the caller's model includes, e.g. the
   /// Nystrom features' kNystromRelativeJitter); the rungs at or below it are skipped. >= 0.
   double min_jitter = 0.0;
+  /// Threads of each attempt (>= 1). From 256 rows on, more than one runs a blocked
+  /// right-looking factorisation whose panel solves and trailing updates are shared among the
+  /// threads in fixed chunks of columns: the factor is the same for every thread count from two
+  /// on, and equals the one-thread factor (Eigen's LLT) up to rounding, not bit for bit.
+  /// Smaller matrices use Eigen's LLT on the calling thread.
+  int num_threads = 1;
 };
 
 /// How a factorisation ended.
@@ -94,8 +100,12 @@ double MeanDiagonal(const ConstMatrixRef& A);
 /// (tr(A^{-1} dA / d theta)). Two blocked recursions, each about n^3 / 3 flops: L^{-1} in
 /// place (the triangular inverse), then the lower triangle of L^{-T} L^{-1}; in all about a
 /// third of solving A X = I with the factor (2 n^3). Allocates the result and the recursions'
-/// temporaries; not for a real-time path. L must have a nonzero diagonal.
-Matrix InverseFromFactor(const ConstMatrixRef& L);
+/// temporaries; not for a real-time path. L must have a nonzero diagonal. With num_threads > 1
+/// (from 256 rows on) the two steps run in fixed chunks of columns on that many threads, with
+/// an n x n temporary more; the result is the same for every thread count from two on and
+/// equals the one-thread result up to rounding. Throws std::invalid_argument on a non-square L
+/// or num_threads < 1.
+Matrix InverseFromFactor(const ConstMatrixRef& L, int num_threads = 1);
 
 /// L L^T = A + J for symmetric positive definite A (only its lower triangle is read).
 ///

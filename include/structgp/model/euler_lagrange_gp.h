@@ -81,14 +81,16 @@ EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(
 /// The exact log evidence of fixed data at one sigma (and friction) as a function of some part
 /// weights and the noise levels: the parts' Gram matrices are computed once, each evaluation
 /// costs one Cholesky factorisation of the (m N) x (m N) covariance (and its inverse for the
-/// gradient). The parts not searched keep the weights of `base`.
+/// gradient). The parts not searched keep the weights of `base`. Each evaluation runs on
+/// num_threads threads (the covariance's columns, the factorisation and the inverse from 256
+/// values on, the parts' gradient terms); its value equals the one-thread value up to rounding.
 class EulerLagrangeEvidence {
  public:
   /// parts: indices into the kernel's parts (0..2N-1), each once. Throws std::invalid_argument
-  /// on bad sizes, non-finite data or a bad part index.
+  /// on bad sizes, non-finite data, a bad part index or num_threads < 1.
   EulerLagrangeEvidence(const EulerLagrangeGPHyperparameters& base, const ConstMatrixRef& X,
                         const ConstMatrixRef& Y, std::vector<int> parts,
-                        const FeatureMap* effects = nullptr);
+                        const FeatureMap* effects = nullptr, int num_threads = 1);
 
   /// (log w of each searched part, log noise std of each joint).
   int num_parameters() const { return static_cast<int>(parts_.size()) + n_; }
@@ -106,6 +108,7 @@ class EulerLagrangeEvidence {
   std::vector<Matrix> grams_;
   Matrix fixed_;  // friction + the parts not searched
   Vector y_;
+  int num_threads_ = 1;
 };
 
 class EulerLagrangeGP {
