@@ -125,6 +125,18 @@ Eigen::Matrix3d RodInertia(double mass, double length, double radius, int axis) 
   return inertia;
 }
 
+// A row of a published table: DH parameters, mass and centre of mass (inertia and armature
+// left to the caller).
+LinkParameters TableLink(double a, double alpha, double d, double mass, const double (&com)[3]) {
+  LinkParameters link;
+  link.a = a;
+  link.alpha = alpha;
+  link.d = d;
+  link.mass = mass;
+  link.com = Eigen::Vector3d(com[0], com[1], com[2]);
+  return link;
+}
+
 }  // namespace
 
 struct Robot::Model {
@@ -338,12 +350,7 @@ Robot Panda() {
                                      {0.0308, 0.0004, -0.0007, 0.0284, -0.0005, 0.0067}};
   std::vector<LinkParameters> links(7);
   for (int i = 0; i < 7; ++i) {
-    LinkParameters& link = links[i];
-    link.a = kA[i];
-    link.alpha = kAlpha[i];
-    link.d = kD[i];
-    link.mass = kMass[i];
-    link.com = Eigen::Vector3d(kCom[i][0], kCom[i][1], kCom[i][2]);
+    LinkParameters& link = links[i] = TableLink(kA[i], kAlpha[i], kD[i], kMass[i], kCom[i]);
     const double* in = kInertia[i];
     link.inertia << in[0], in[1], in[2],  //
         in[1], in[3], in[4],              //
@@ -368,13 +375,8 @@ Robot Ur10() {
   constexpr int kAxis[6] = {1, 0, 0, 1, 1, 2};
   std::vector<LinkParameters> links(6);
   for (int i = 0; i < 6; ++i) {
-    LinkParameters& link = links[i];
-    link.a = kA[i];
-    link.alpha = kAlpha[i];
-    link.d = kD[i];
-    link.mass = kMass[i];
-    link.com = Eigen::Vector3d(kCom[i][0], kCom[i][1], kCom[i][2]);
-    link.inertia = RodInertia(kMass[i], kLength[i], kRadius[i], kAxis[i]);
+    links[i] = TableLink(kA[i], kAlpha[i], kD[i], kMass[i], kCom[i]);
+    links[i].inertia = RodInertia(kMass[i], kLength[i], kRadius[i], kAxis[i]);
   }
   return Robot("ur10", std::move(links));
 }
