@@ -148,5 +148,69 @@ TEST(FitModel, WarnsWhenTheCheckFails) {
             fit.model.hyperparameters().log_block_scale);
 }
 
+// The held-out coverage: per joint, the fraction of held-out torques within 2 predictive
+// (noisy) std of the held-out mean, counted here by hand over the same five blocks of 50 rows
+// (each predicted by the model fitted on the other four); a noise level far too small makes
+// the band too narrow, a far too large one covers everything.
+TEST(CheckOnHeldOutBlocks, CoverageCountsTheHeldOutTorquesInsideTheBand) {
+  const Log log = SaturatingLog(/*spike_at_end=*/false, 604);
+  const RobotModel model(ParseModelSpec("motor"), 1);
+  for (const double noise : {1e-4, 0.05, 10.0}) {
+    SCOPED_TRACE("noise " + std::to_string(noise));
+    const Hyperparameters h = MotorHyper(model, log.Y, noise);
+    const FitCheck check = CheckOnHeldOutBlocks(model, h, log.X, log.Y);
+    std::cout << check.message << std::endl;
+    ASSERT_TRUE(check.ran);
+    ASSERT_EQ(check.coverage.size(), 1);
+    const double noise_std = noise * std::exp(h.log_output_scale[0]);
+    int inside = 0;
+    for (int block = 0; block < 5; ++block) {
+      Matrix X(200, 3), Y(200, 1);
+      X << log.X.topRows(50 * block), log.X.bottomRows(200 - 50 * block);
+      Y << log.Y.topRows(50 * block), log.Y.bottomRows(200 - 50 * block);
+      RobotModel fold(ParseModelSpec("motor"), 1);
+      ASSERT_EQ(fold.Fit(X, Y, h), Status::kOk);
+      Matrix mean, std;
+      fold.PredictRows(log.X.middleRows(50 * block, 50), &mean, &std);
+      for (int i = 0; i < 50; ++i) {
+        const double band = 2.0 * std::hypot(std(i, 0), noise_std);
+        if (std::abs(log.Y(50 * block + i, 0) - mean(i, 0)) <= band) ++inside;
+      }
+    }
+    EXPECT_DOUBLE_EQ(check.coverage[0], inside / 250.0);
+    if (noise == 1e-4) EXPECT_LT(check.coverage[0], 0.5);
+    if (noise == 10.0) EXPECT_EQ(check.coverage[0], 1.0);
+    EXPECT_NE(check.message.find("2 sigma band covers"), std::string::npos);
+  }
+  FitCheckOptions bad;
+  bad.min_coverage = 1.5;
+  EXPECT_FALSE(bad.IsValid(nullptr));
+}
+
+// FitModel warns of a joint whose held-out coverage is below FitCheckOptions::min_coverage,
+// naming it and its coverage; below a bar of 0 nothing is.
+TEST(FitModel, WarnsOfBandsTooNarrowOnTheHeldOutBlocks) {
+  const Log log = SaturatingLog(/*spike_at_end=*/false, 605);
+  FitOptions options;
+  options.check.min_coverage = 1.0;  // every joint under 100% is named
+  const FittedModel fit = FitModel(ParseModelSpec("motor"), log.X, log.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  ASSERT_TRUE(fit.summary.check.ran);
+  ASSERT_EQ(fit.summary.check.coverage.size(), 1);
+  const double coverage = fit.summary.check.coverage[0];
+  ASSERT_LT(coverage, 1.0);
+  ASSERT_EQ(fit.summary.warnings.size(), 1u);
+  const std::string expected =
+      "the 2 sigma band of joint 1 covered only " + std::to_string(static_cast<int>(
+          std::lround(100.0 * coverage))) + "% of the held-out torques";
+  EXPECT_NE(fit.summary.warnings[0].find(expected), std::string::npos) << fit.summary.warnings[0];
+  EXPECT_NE(ToJson(fit.model, fit.summary).find("\"coverage\""), std::string::npos);
+
+  options.check.min_coverage = 0.0;
+  const FittedModel quiet = FitModel(ParseModelSpec("motor"), log.X, log.Y, Vector(), options);
+  EXPECT_TRUE(quiet.summary.warnings.empty());
+  EXPECT_EQ(quiet.summary.check.coverage[0], coverage);
+}
+
 }  // namespace
 }  // namespace structgp

@@ -36,6 +36,10 @@ bool FitCheckOptions::IsValid(std::string* error) const {
     return fail(Format("FitCheckOptions::max_fraction: expected a value in [0, 1), got %g",
                        max_fraction));
   }
+  if (!(min_coverage >= 0.0 && min_coverage <= 1.0)) {
+    return fail(Format("FitCheckOptions::min_coverage: expected a value in [0, 1], got %g",
+                       min_coverage));
+  }
   return true;
 }
 
@@ -67,6 +71,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   std::vector<int> absurd(static_cast<size_t>(N), 0);
   std::vector<int> confident(static_cast<size_t>(N), 0);
   std::vector<double> excursion(static_cast<size_t>(N), 0.0);
+  std::vector<int> covered(static_cast<size_t>(N), 0);
   int skipped = 0;
   for (const auto& [begin, end] : ContiguousFolds(m, options.folds)) {
     const int held = end - begin;
@@ -92,6 +97,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
           continue;
         }
         const double std = std::hypot(latent_std(i, j), noise_std[j]);
+        if (std::abs(Ys(begin + i, j) - mu) <= 2.0 * std) ++covered[static_cast<size_t>(j)];
         if (outside > 0.0) {
           const bool sure = outside > options.confidence_sigmas * std;
           if (sure) ++confident[static_cast<size_t>(j)];
@@ -108,6 +114,10 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     return check;
   }
   check.ran = true;
+  check.coverage.resize(N);
+  for (int j = 0; j < N; ++j) {
+    check.coverage[j] = static_cast<double>(covered[static_cast<size_t>(j)]) / check.rows;
+  }
   for (int j = 0; j < N; ++j) {
     const double fraction = static_cast<double>(absurd[static_cast<size_t>(j)]) / check.rows;
     if (fraction > check.worst_fraction) {
@@ -131,6 +141,10 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   const std::string folds_text =
       Format("%d contiguous blocks of %d evenly spaced rows%s", options.folds, m,
              skipped > 0 ? Format(", %d not fitted", skipped).c_str() : "");
+  std::string coverage_text;
+  for (int j = 0; j < N; ++j) {
+    coverage_text += Format("%s%.0f%%", j == 0 ? "" : " ", 100.0 * check.coverage[j]);
+  }
   if (check.passed) {
     check.message = Format(
         "held-out check passed (%s): largest excursion %.3g spans of the training torque range "
@@ -145,6 +159,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
         options.range_margin, check.worst_excursion, 100.0 * check.worst_confident_fraction,
         options.confidence_sigmas);
   }
+  check.message += "; 2 sigma band covers " + coverage_text + " of the held-out torques per joint";
   return check;
 }
 

@@ -510,6 +510,26 @@ std::string JointList(const std::vector<int>& joints) {
   return text;
 }
 
+// The warning for joints whose 2 sigma band covered less than min_coverage of their held-out
+// torques in the held-out check (none when it did not run or every band covered enough).
+std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_coverage) {
+  if (!check.ran) return {};
+  std::vector<int> narrow;
+  std::string percents;
+  for (int j = 0; j < static_cast<int>(check.coverage.size()); ++j) {
+    if (check.coverage[j] < min_coverage) {
+      percents += Format("%s%.0f%%", narrow.empty() ? "" : ", ", 100.0 * check.coverage[j]);
+      narrow.push_back(j);
+    }
+  }
+  if (narrow.empty()) return {};
+  return {Format(
+      "the 2 sigma band of %s %s covered only %s of the held-out torques (held-out check; about "
+      "95%% when calibrated): the model claims more certainty than it has on motion it was not "
+      "fitted on",
+      narrow.size() == 1 ? "joint" : "joints", JointList(narrow).c_str(), percents.c_str())};
+}
+
 // Warnings for joints the log never moves or never accelerates (kStillJointRms): the torques
 // that act only with motion (friction, Coriolis and centrifugal; inertia) are not in its data,
 // so whatever the model predicts of them on other motion rests on its prior alone.
@@ -759,6 +779,9 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
                                  ". Predictions away from the training path may be far off.");
     }
   }
+  for (std::string& warning : NarrowBandWarnings(summary.check, options.check.min_coverage)) {
+    summary.warnings.push_back(std::move(warning));
+  }
   summary.hyperparameter_seconds = fit.seconds();
   if (fit.aborted()) return fit.Aborted();
   if (!go_on) return fit.Finish(FitTermination::kFailure, failure);
@@ -955,6 +978,11 @@ std::string ToJson(const RobotModel& model, const FitSummary& summary) {
   using Json = nlohmann::ordered_json;
   // JSON has no NaN or infinity: such a number is written as null.
   auto number = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
+  auto numbers = [&number](const Vector& v) {
+    Json list = Json::array();
+    for (Eigen::Index k = 0; k < v.size(); ++k) list.push_back(number(v[k]));
+    return list;
+  };
   Json j;
   j["model"] = ModelLabel(model.spec());
   j["num_joints"] = model.num_joints();
@@ -1004,6 +1032,7 @@ std::string ToJson(const RobotModel& model, const FitSummary& summary) {
                 {"worst_fraction", number(summary.check.worst_fraction)},
                 {"worst_confident_fraction", number(summary.check.worst_confident_fraction)},
                 {"worst_excursion", number(summary.check.worst_excursion)},
+                {"coverage", numbers(summary.check.coverage)},
                 {"message", summary.check.message}};
   s["cv_mean_nmse"] = number(summary.cv_mean_nmse);
   s["cv_candidates"] = summary.cv_candidates;

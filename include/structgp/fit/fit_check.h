@@ -15,6 +15,10 @@
 /// too; a model that does not know and says so falls back to its mean, which lies inside the
 /// range. `count_only_confident` restricts the check to confidently absurd predictions.
 ///
+/// The same predictions give each joint's held-out coverage: the fraction of the held-out
+/// torques within 2 predictive (noisy) standard deviations of the held-out mean, about 95% for
+/// a model whose bands are calibrated on motion it was not fitted on.
+///
 /// Cost: `folds` fits of the model on at most max_rows (1 - 1/folds) rows and predictions with
 /// variance of the held-out rows.
 
@@ -44,6 +48,9 @@ struct FitCheckOptions {
   /// The check fails when more than this fraction of the held-out predictions of any joint
   /// are absurd (confidently absurd with count_only_confident).
   double max_fraction = 0.01;
+  /// FitModel warns of every joint whose held-out coverage (FitCheck::coverage) is below this:
+  /// its bands are too narrow on motion the model was not fitted on. In [0, 1].
+  double min_coverage = 0.8;
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
   /// null).
@@ -66,6 +73,9 @@ struct FitCheck {
   double worst_fraction = 0.0;
   double worst_confident_fraction = 0.0;
   double worst_excursion = 0.0;
+  /// Per joint, the fraction of its held-out torques within 2 predictive (noisy) standard
+  /// deviations of the held-out mean (size N when the check ran, else empty).
+  Vector coverage;
   /// One line for a person.
   std::string message;
 };
