@@ -232,17 +232,25 @@ CholeskyResult Cholesky::Factorize(const ConstMatrixRef& A, const CholeskyOption
       options.scale == JitterScale::kMeanDiagonal && diagonal_finite ? MeanDiagonal(A) : 0.0;
 
   double delta = options.min_jitter;
-  bool accepted = diagonal_finite && Attempt(A, options.scale, mean_diagonal, delta, options.num_threads, &factor_);
-  if (!accepted && diagonal_finite && options.ladder == JitterLadder::kClimb) {
-    // The rungs, computed by repeated multiplication (the values fit_jitter() has always
-    // reported), skipping those at or below min_jitter.
-    double rung = kJitterFirst;
-    for (int k = 0; k < kMaxJitterSteps && !accepted; ++k, rung *= kJitterGrowth) {
-      if (rung <= options.min_jitter) continue;
-      delta = rung;
-      ++result_.steps;
-      accepted = Attempt(A, options.scale, mean_diagonal, delta, options.num_threads, &factor_);
+  bool accepted = false;
+  try {
+    accepted = diagonal_finite &&
+               Attempt(A, options.scale, mean_diagonal, delta, options.num_threads, &factor_);
+    if (!accepted && diagonal_finite && options.ladder == JitterLadder::kClimb) {
+      // The rungs, computed by repeated multiplication (the values fit_jitter() has always
+      // reported), skipping those at or below min_jitter.
+      double rung = kJitterFirst;
+      for (int k = 0; k < kMaxJitterSteps && !accepted; ++k, rung *= kJitterGrowth) {
+        if (rung <= options.min_jitter) continue;
+        delta = rung;
+        ++result_.steps;
+        accepted = Attempt(A, options.scale, mean_diagonal, delta, options.num_threads, &factor_);
+      }
     }
+  } catch (...) {
+    // A thread that could not start (the threaded path): no half-done factor is left behind.
+    factor_.setZero();
+    throw;
   }
   result_.jitter = delta;
   if (!accepted) {

@@ -29,7 +29,8 @@
 /// false.
 ///
 /// Cost and memory. O(n^3 / 3) per attempt plus O(n^2) copies; one n x n matrix. Factorize of
-/// a matrix of the size given to the constructor, on one thread, allocates nothing itself;
+/// a matrix of the size given to the constructor, on one thread, allocates nothing itself (on
+/// more threads it starts threads and allocates their lists of chunks);
 /// Eigen's blocked LLT that it calls allocates its own GEMM workspace above a few hundred rows
 /// (none measured up to n = 300). No real-time path factorises.
 
