@@ -129,8 +129,9 @@ TEST(SimUrdfTest, Ur10StretchedAndUpright) {
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(6);
   const Eigen::VectorXd stretched = ur10.InverseDynamics(zero, zero, zero);
   const double wrist = 2.0 + 2.0 + 0.365;
-  const double shoulder = kStandardGravity * (12.7 * (0.612 - 0.38) + 4.27 * (0.612 + 0.5723 - 0.24) +
-                                              wrist * (0.612 + 0.5723));
+  const double shoulder =
+      kStandardGravity *
+      (12.7 * (0.612 - 0.38) + 4.27 * (0.612 + 0.5723 - 0.24) + wrist * (0.612 + 0.5723));
   const double elbow = kStandardGravity * (4.27 * (0.5723 - 0.24) + wrist * 0.5723);
   EXPECT_NEAR(std::abs(stretched(1)), shoulder, 1e-9 * shoulder);
   EXPECT_NEAR(std::abs(stretched(2)), elbow, 1e-9 * elbow);

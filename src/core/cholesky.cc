@@ -90,8 +90,9 @@ bool ParallelLltInPlace(Eigen::Ref<Matrix> M, int num_threads) {
         chunks, num_threads,
         [&](const Chunk& c) { return static_cast<double>(rest - c.begin) * c.size; },
         [&](const Chunk& c) {
+          const auto below = panel.middleRows(c.begin, rest - c.begin);
           M.block(k + b + c.begin, k + b + c.begin, rest - c.begin, c.size).noalias() -=
-              panel.middleRows(c.begin, rest - c.begin) * panel.middleRows(c.begin, c.size).transpose();
+              below * panel.middleRows(c.begin, c.size).transpose();
         });
   }
   return true;
@@ -191,13 +192,15 @@ Matrix InverseFromFactor(const ConstMatrixRef& L, int num_threads) {
     RunChunks(chunks, num_threads, cost, [&](const Chunk& c) {
       auto X = W.block(c.begin, c.begin, n - c.begin, c.size);
       X.topRows(c.size).setIdentity();
-      L.block(c.begin, c.begin, n - c.begin, n - c.begin).triangularView<Eigen::Lower>().solveInPlace(X);
+      const auto tail = L.block(c.begin, c.begin, n - c.begin, n - c.begin);
+      tail.triangularView<Eigen::Lower>().solveInPlace(X);
     });
     Matrix M(n, n);
     RunChunks(chunks, num_threads, cost, [&](const Chunk& c) {
+      const auto tail = W.block(c.begin, c.begin, n - c.begin, n - c.begin);
+      const auto columns = W.block(c.begin, c.begin, n - c.begin, c.size);
       M.block(c.begin, c.begin, n - c.begin, c.size).noalias() =
-          W.block(c.begin, c.begin, n - c.begin, n - c.begin).triangularView<Eigen::Lower>().transpose() *
-          W.block(c.begin, c.begin, n - c.begin, c.size);
+          tail.triangularView<Eigen::Lower>().transpose() * columns;
     });
     M.triangularView<Eigen::StrictlyUpper>() = M.transpose();
     return M;
