@@ -117,8 +117,6 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   check.coverage.resize(N);
   for (int j = 0; j < N; ++j) {
     check.coverage[j] = static_cast<double>(covered[static_cast<size_t>(j)]) / check.rows;
-  }
-  for (int j = 0; j < N; ++j) {
     const double fraction = static_cast<double>(absurd[static_cast<size_t>(j)]) / check.rows;
     if (fraction > check.worst_fraction) {
       check.worst_joint = j + 1;

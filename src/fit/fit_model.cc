@@ -510,6 +510,11 @@ std::string JointList(const std::vector<int>& joints) {
   return text;
 }
 
+// "joint 1", "joints 1 and 3".
+std::string JointsText(const std::vector<int>& joints) {
+  return (joints.size() == 1 ? "joint " : "joints ") + JointList(joints);
+}
+
 // The warning for joints whose 2 sigma band covered less than min_coverage of their held-out
 // torques in the held-out check (none when it did not run or every band covered enough).
 std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_coverage) {
@@ -524,10 +529,10 @@ std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_co
   }
   if (narrow.empty()) return {};
   return {Format(
-      "the 2 sigma band of %s %s covered only %s of the held-out torques (held-out check; about "
+      "the 2 sigma band of %s covered only %s of the held-out torques (held-out check; about "
       "95%% when calibrated): the model claims more certainty than it has on motion it was not "
       "fitted on",
-      narrow.size() == 1 ? "joint" : "joints", JointList(narrow).c_str(), percents.c_str())};
+      JointsText(narrow).c_str(), percents.c_str())};
 }
 
 // Warnings for joints the log never moves or never accelerates (kStillJointRms): the torques
@@ -558,16 +563,13 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
     return largest == 0.0 ? Format("%s zero on every row", what)
                           : Format("%s RMS at most %.2g %s", what, largest, unit);
   };
-  const auto joints = [](const std::vector<int>& list) {
-    return (list.size() == 1 ? "joint " : "joints ") + JointList(list);
-  };
   std::vector<std::string> warnings;
   if (!still.empty()) {
     warnings.push_back(Format(
         "%s never move%s in the %d rows (%s): the fit sees none of the friction, inertial or "
         "velocity (Coriolis, centrifugal) torques of %s, and the model's predictions of them on "
         "motion rest on its prior alone",
-        joints(still).c_str(), still.size() == 1 ? "s" : "", rows,
+        JointsText(still).c_str(), still.size() == 1 ? "s" : "", rows,
         size_text("velocity", largest_velocity, "rad/s").c_str(),
         still.size() == 1 ? "its motion" : "their motion"));
   }
@@ -575,7 +577,7 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
     warnings.push_back(Format(
         "%s never accelerate%s in the %d rows (%s): the fit sees no inertial torque of %s, and "
         "the model's predictions of it on accelerating motion rest on its prior alone",
-        joints(unaccelerated).c_str(), unaccelerated.size() == 1 ? "s" : "", rows,
+        JointsText(unaccelerated).c_str(), unaccelerated.size() == 1 ? "s" : "", rows,
         size_text("acceleration", largest_acceleration, "rad/s^2").c_str(),
         unaccelerated.size() == 1 ? "its acceleration" : "their accelerations"));
   }
