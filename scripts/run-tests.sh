@@ -70,7 +70,7 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
         test_euler_lagrange_gp test_cholesky
   threaded='^test_(online|nystrom|batch_fit|concurrent_predict)\.'
   threaded+='|^test_euler_lagrange_gp\.EulerLagrangeGP\.(DtcOverBlocksAndWorkers|EvidenceOnThreads)'
-  threaded+='|^test_cholesky\.Cholesky\.ThreadsGiveTheOneThread'
+  threaded+='|^test_cholesky\.(Cholesky\.ThreadsGiveTheOneThread|Workers\.)'
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
     ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R "$threaded"
 

@@ -2,8 +2,10 @@
 // Eigen's LLT (bit-identical) and against A itself (L L^T = A + J to the backward-error bound),
 // the jitter ladder on rank-deficient and slightly indefinite matrices (status, the rung used,
 // never NaN), matrices that no jitter rescues (status and a zero factor), the pivot floor that
-// Eigen alone does not apply, scale invariance, bad arguments, and no allocation.
+// Eigen alone does not apply, scale invariance, bad arguments, and no allocation; and the
+// workers that the threaded factorisation runs on when a thread cannot be started.
 
+#include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
@@ -12,6 +14,9 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <system_error>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <Eigen/Cholesky>
@@ -19,6 +24,7 @@
 
 #include "alloc_counter.h"
 #include "structgp/internal/cholesky.h"
+#include "structgp/internal/workers.h"
 
 namespace structgp {
 namespace {
@@ -325,7 +331,9 @@ TEST(Cholesky, ThreadsGiveTheOneThreadFactorAndInverseUpToRounding) {
       ASSERT_EQ(result.status, Status::kOk);
       EXPECT_EQ(result.steps, 0);
       // From 256 rows on the blocked path runs: its rounding differs from Eigen's LLT.
-      if (n >= 256) EXPECT_FALSE(many.factor() == one.factor()) << "the threaded path did not run";
+      if (n >= 256) {
+        EXPECT_FALSE(many.factor() == one.factor()) << "the threaded path did not run";
+      }
       ExpectValidFactor(many.factor());
       ExpectReconstructs(many.factor(), A);
       const double scale = one.factor().cwiseAbs().maxCoeff();
@@ -365,6 +373,59 @@ TEST(Cholesky, ThreadsGiveTheOneThreadFactorAndInverseUpToRounding) {
   const CholeskyResult failed = many.Factorize(WithSpectrum(spectrum, &rng), options);
   EXPECT_EQ(failed.status, Status::kNotPositiveDefinite);
   EXPECT_EQ(many.factor().cwiseAbs().maxCoeff(), 0.0);
+}
+
+// A thread that cannot be started (std::thread throws at the system's thread limit) costs
+// time, not the result: its items run on the calling thread. Starts fail after `allowed`.
+struct FailingStart {
+  int allowed = 0;
+  mutable int calls = 0;
+  template <typename Run>
+  std::thread operator()(Run&& run) const {
+    if (calls++ >= allowed) {
+      throw std::system_error(std::make_error_code(std::errc::resource_unavailable_try_again),
+                              "thread limit");
+    }
+    return std::thread(std::forward<Run>(run));
+  }
+};
+
+TEST(Workers, ItemsWithoutAThreadRunOnTheCallingThreadOnce) {
+  const std::thread::id caller = std::this_thread::get_id();
+  for (int allowed : {0, 1, 2, 5}) {
+    SCOPED_TRACE("threads allowed: " + std::to_string(allowed));
+    const int workers = 5;
+    std::vector<int> runs(workers, 0);
+    std::vector<std::thread::id> ran_on(workers);
+    FailingStart start{allowed};
+    internal::RunWorkers(workers, [&](int w) {
+      ++runs[static_cast<size_t>(w)];
+      ran_on[static_cast<size_t>(w)] = std::this_thread::get_id();
+    }, start);
+    EXPECT_EQ(start.calls, std::min(allowed + 1, workers - 1));
+    for (int w = 0; w < workers; ++w) {
+      EXPECT_EQ(runs[static_cast<size_t>(w)], 1) << "item " << w;
+      // Item 0 and the items past the last started thread run on the caller, the others not.
+      const bool on_caller = w == 0 || w > allowed;
+      EXPECT_EQ(ran_on[static_cast<size_t>(w)] == caller, on_caller) << "item " << w;
+    }
+  }
+}
+
+TEST(Workers, AnItemsExceptionIsRethrownAfterEveryItemRan) {
+  for (int allowed : {0, 4}) {
+    std::vector<int> runs(5, 0);
+    try {
+      internal::RunWorkers(5, [&](int w) {
+        ++runs[static_cast<size_t>(w)];
+        if (w == 1 || w == 3) throw std::runtime_error("item " + std::to_string(w));
+      }, FailingStart{allowed});
+      ADD_FAILURE() << "no exception";
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()), "item 1");  // the first by index
+    }
+    EXPECT_EQ(runs, std::vector<int>(5, 1));
+  }
 }
 
 TEST(Cholesky, BadArgumentsThrowNamingTheProblem) {

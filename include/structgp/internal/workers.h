@@ -3,19 +3,32 @@
 
 /// @file
 /// Internal: work(0), ..., work(workers - 1) on `workers` threads, work(0) on the calling one.
-/// An exception of any of them is rethrown (the first by index) after every thread has been
-/// joined; so is a failure to start a thread, after the ones started are joined.
+/// The work items must not wait for each other (no barrier between them): when a thread
+/// cannot be started (std::thread throws, e.g. at the system's thread limit), the items it
+/// would have run run on the calling thread after work(0), so the results are the same and
+/// only the time differs. An exception of any item is rethrown (the first by index) after
+/// every thread has been joined.
 
 #include <exception>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace structgp {
 namespace internal {
 
-template <typename Work>
-void RunWorkers(int workers, Work&& work) {
-  std::vector<std::exception_ptr> errors(static_cast<size_t>(workers));
+/// Starts a thread running `run` (the default of RunWorkers: std::thread). Tests pass one that
+/// fails, to exercise the fallback.
+struct StartThread {
+  template <typename Run>
+  std::thread operator()(Run&& run) const {
+    return std::thread(std::forward<Run>(run));
+  }
+};
+
+template <typename Work, typename Start = StartThread>
+void RunWorkers(int workers, Work&& work, Start&& start = Start()) {
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(workers > 0 ? workers : 0));
   auto guarded = [&](int w) {
     try {
       work(w);
@@ -24,14 +37,17 @@ void RunWorkers(int workers, Work&& work) {
     }
   };
   std::vector<std::thread> threads;
-  threads.reserve(static_cast<size_t>(workers > 1 ? workers - 1 : 0));
+  int started = 1;  // items 1..started-1 run on their own threads
   try {
-    for (int w = 1; w < workers; ++w) threads.emplace_back(guarded, w);
+    threads.reserve(static_cast<size_t>(workers > 1 ? workers - 1 : 0));
+    for (; started < workers; ++started) threads.push_back(start([&guarded, started] {
+      guarded(started);
+    }));
   } catch (...) {
-    for (auto& t : threads) t.join();
-    throw;
+    // No thread for items started..workers-1: the calling thread runs them below.
   }
   guarded(0);
+  for (int w = started; w < workers; ++w) guarded(w);
   for (auto& t : threads) t.join();
   for (const auto& e : errors) {
     if (e) std::rethrow_exception(e);
