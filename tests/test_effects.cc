@@ -178,6 +178,19 @@ TEST(ModelLabelText, RoundTripsAndReadsTheShortForms) {
   ASSERT_EQ(short_form.effects.size(), 1u);
   EXPECT_EQ(short_form.effects[0].params.at("width"), 10.0);
   EXPECT_EQ(ParseModelLabel("pol+fri+viscous").effects.size(), 1u);
+  // A URDF's torques beside a kernel base: "rbd+" is part of the model, not an effect.
+  for (const char* label : {"rbd+pol", "rbd+rbf+fri", "rbd+rbfs + offset", "rbd+motor+fri + coulomb@2",
+                            "rbd+fri + coulomb@1"}) {
+    const ModelSpec urdf = ParseModelLabel(label);
+    EXPECT_EQ(ModelLabel(ParseModelLabel(ModelLabel(urdf))), ModelLabel(urdf)) << label;
+    EXPECT_EQ(ModelLabel(urdf), label) << label;
+  }
+  const ModelSpec beside = ParseModelLabel("rbd+pol+fri + coulomb@2");
+  EXPECT_TRUE(beside.rigid_body_features);
+  EXPECT_EQ(beside.base, BaseModel::kPol);
+  EXPECT_TRUE(beside.friction);
+  ASSERT_EQ(beside.effects.size(), 1u);
+  EXPECT_EQ(beside.effects[0].joints, std::vector<int>{2});
   // Errors name the part, as the two parsers do.
   auto message = [](const std::string& text) {
     try {

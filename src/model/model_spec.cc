@@ -134,23 +134,35 @@ ModelSpec ParseModelSpec(const std::string& model) {
 }
 
 ModelSpec ParseModelLabel(const std::string& text) {
-  // base ["+" "fri"] ["+" effect list]: "fri" counts only as a whole item, so an effect whose
-  // name starts with "fri" still reads as an effect.
-  const auto first = text.find('+');
-  if (first == std::string::npos) return ParseModelSpec(text);
-  std::string model = text.substr(0, first);
-  std::string rest = text.substr(first + 1);
-  const std::string head = Trim(rest.substr(0, rest.find('+')));
-  if (head == "fri") {
-    model = text.substr(0, first) + "+fri";
-    const auto second = rest.find('+');
-    rest = second == std::string::npos ? std::string() : rest.substr(second + 1);
-    if (second != std::string::npos && Trim(rest).empty()) {
-      throw std::invalid_argument("model '" + text + "': '+' must be followed by effects, e.g. coulomb@2");
-    }
-  } else if (Trim(rest).empty()) {
-    throw std::invalid_argument("model '" + text +
-                                "': '+' must be followed by 'fri' or effects, e.g. coulomb@2");
+  // The model as ParseModelSpec reads it ("rbd+" before a kernel base, then "+fri", each only
+  // as a whole item, so an effect whose name starts with "fri" still reads as an effect), then
+  // after the next '+' the effect list.
+  std::vector<std::string> items;
+  for (size_t start = 0;;) {
+    const size_t plus = text.find('+', start);
+    items.push_back(text.substr(start, plus == std::string::npos ? std::string::npos
+                                                                 : plus - start));
+    if (plus == std::string::npos) break;
+    start = plus + 1;
+  }
+  size_t taken = 1;
+  const auto item_is = [&](size_t k, const char* word) {
+    return k < items.size() && Trim(items[k]) == word;
+  };
+  if (item_is(0, "rbd") &&
+      (item_is(1, "pol") || item_is(1, "rbf") || item_is(1, "rbfs") || item_is(1, "motor"))) {
+    taken = 2;
+  }
+  if (item_is(taken, "fri")) ++taken;
+  std::string model, rest;
+  for (size_t k = 0; k < items.size(); ++k) {
+    std::string& part = k < taken ? model : rest;
+    part += (part.empty() && (k == 0 || k == taken) ? "" : "+") + items[k];
+  }
+  if (taken < items.size() && Trim(rest).empty()) {
+    throw std::invalid_argument("model '" + text + "': '+' must be followed by " +
+                                (item_is(taken - 1, "fri") ? "" : "'fri' or ") +
+                                "effects, e.g. coulomb@2");
   }
   ModelSpec spec = ParseModelSpec(model);
   spec.effects = ParseEffectList(Trim(rest));
