@@ -4,6 +4,7 @@
 //   generalisation [--robots=two_link,three_link,puma560,panda] [--cases=none,friction,payload]
 //                  [--models=reference,rbd+fri,rbd+fri/off30,lag+fri,pol+fri,rbf+fri]
 //                  [--train-seconds=50] [--train-vias=50] [--noise=0.01] [--tests=2]
+//                  [--size-by=train|default-slow]
 //                  [--lagk-rows=800] [--lagk-hyper-rows=400] [--lagk-inducing=0]
 //                  [--lagk-inducing-rule=cover|stride]
 //                  [--lagk-sigmas=1,3,10,30,100] [--prior=gaussian|student_t|none]
@@ -16,7 +17,9 @@
 // ...: other paths), torques by KDL's recursive Newton-Euler (sim::Simulate), noise per joint
 // --noise times that joint's RMS noise-free training torque. Case "friction": viscous and
 // Coulomb friction on every joint (Coulomb 10% of the joint's RMS torque, viscous 5% of it per
-// RMS velocity, tanh width 0.01 rad/s), and the models are told (+fri).
+// RMS velocity, tanh width 0.01 rad/s), and the models are told (+fri). With
+// --size-by=default-slow the RMS torques and velocities that size noise and friction are the
+// default slow log's (50 via points in 50 s) whatever the training log.
 //
 // Models: "reference" is least squares (noise-weighted) on the true rigid-body regressor of the
 // simulated chain (sim::ToUrdf -> RigidBodyChain, armature included) plus the true friction
@@ -106,6 +109,10 @@ struct Flags {
   std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
   std::string prior = "gaussian";  // of every type-II search (the CLI's --prior)
   double noise = 0.01;
+  // "train": noise and friction sized by the training log's RMS torques and velocities;
+  // "default-slow": by the default slow log's (50 via points in 50 s), whatever the training
+  // log, so that runs with other training motion keep the same noise and friction.
+  std::string size_by = "train";
   int tests = 2;
   std::string out;
   bool quick = false;
@@ -151,10 +158,15 @@ Case MakeCase(const sim::Robot& dh_robot, const std::string& kind, const Flags& 
   const sim::Robot robot = kind == "payload" ? sim::Robot::FromRigidBodyChain(*c.truth) : dh_robot;
   const bool friction = c.friction;
   const sim::Trajectory slow = sim::ViaPoints(N, f.train_seconds, kDt, f.train_vias, 1.0, kRange, 1);
-  const sim::Dataset clean = sim::Simulate(robot, slow);
+  const Flags defaults;
+  const sim::Trajectory sizing =
+      f.size_by == "train" ? slow
+                           : sim::ViaPoints(N, defaults.train_seconds, kDt, defaults.train_vias,
+                                            1.0, kRange, 1);
+  const sim::Dataset clean = sim::Simulate(robot, sizing);
   const Vector rms = (clean.Y.colwise().squaredNorm() / clean.Y.rows()).cwiseSqrt().transpose();
   const Vector qd_rms =
-      (slow.qd.colwise().squaredNorm() / slow.qd.rows()).cwiseSqrt().transpose();
+      (sizing.qd.colwise().squaredNorm() / sizing.qd.rows()).cwiseSqrt().transpose();
   sim::SimulationOptions options;
   if (friction) {
     std::vector<sim::JointFriction> joints(static_cast<size_t>(N));
@@ -760,6 +772,12 @@ int main(int argc, char** argv) {
                "FitModel's models)");
   structgp::AddFlag(&app, "--noise", &f.noise, "noise std relative to each joint's RMS torque")
       ->check(structgp::GreaterThan(0));
+  app.add_option("--size-by", f.size_by,
+                 "what sizes the noise and the friction: the training log's RMS torques and "
+                 "velocities (train), or the default slow log's, 50 via points in 50 s "
+                 "(default-slow: the same noise and friction whatever --train-seconds and "
+                 "--train-vias)")
+      ->check(CLI::IsMember({"train", "default-slow"}));
   structgp::AddFlag(&app, "--tests", &f.tests, "fast test logs")->check(structgp::AtLeast(1));
   app.add_option("--out", f.out, "CSV file of the per-joint results");
   app.add_option("--write-logs", f.write_logs,
