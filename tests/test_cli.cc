@@ -216,6 +216,77 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   EXPECT_FALSE(std::filesystem::exists(dir.File("never.json")));
 }
 
+// The columns of a CSV file by header name (numbers only).
+std::map<std::string, std::vector<double>> CsvColumns(const std::string& text) {
+  std::istringstream lines(text);
+  std::string line;
+  std::getline(lines, line);
+  std::vector<std::string> names;
+  std::istringstream header(line);
+  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
+  std::map<std::string, std::vector<double>> columns;
+  while (std::getline(lines, line)) {
+    std::istringstream fields(line);
+    std::string field;
+    for (size_t k = 0; k < names.size() && std::getline(fields, field, ','); ++k) {
+      columns[names[k]].push_back(std::stod(field));
+    }
+  }
+  return columns;
+}
+
+// evaluate's 2 sigma band coverage is the fraction of the measured torques within 2 sqrt(std^2
+// + noise^2) of the mean, from predict's file (the posterior std) and fit's noise levels; the
+// model without the demo's hidden friction claims too much certainty on joint 2's fast log.
+TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBand) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);
+  const std::string test = demo + "/test.csv";
+  for (const char* model_name : {"pol", "pol+fri"}) {
+    SCOPED_TRACE(model_name);
+    const std::string model = dir.File("model.json");
+    const std::string fitted = dir.File("fit.json");
+    Result r = RunCli(dir, {"fit", "--data", demo + "/train.csv", "--model", model_name, "--out",
+                            model, "--json", fitted, "-q"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = RunCli(dir, {"predict", "--model", model, "--data", test, "--out", dir.File("pred.csv")});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string errors = dir.File("errors.json");
+    r = RunCli(dir, {"evaluate", "--model", model, "--data", test, "--json", errors});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(Contains(r.out, "2 sigma band")) << r.out;
+
+    const Json noise = Json::parse(ReadFile(fitted))["noise_std"];
+    auto measured = CsvColumns(ReadFile(test));
+    auto predicted = CsvColumns(ReadFile(dir.File("pred.csv")));
+    const Json e = Json::parse(ReadFile(errors));
+    double mean_coverage = 0.0;
+    for (int j = 1; j <= 2; ++j) {
+      const std::string tau = "tau" + std::to_string(j);
+      const auto& y = measured[tau];
+      const auto& mu = predicted[tau + "_mean"];
+      const auto& sd = predicted[tau + "_std"];
+      ASSERT_EQ(y.size(), 1000u);
+      ASSERT_EQ(mu.size(), y.size());
+      int inside = 0;
+      for (size_t i = 0; i < y.size(); ++i) {
+        const double band = 2.0 * std::hypot(sd[i], noise[j - 1].get<double>());
+        if (std::abs(y[i] - mu[i]) <= band) ++inside;
+      }
+      const double coverage = e["joints"][j - 1]["coverage"].get<double>();
+      // predict writes the std with the digits that read back exactly: the same count.
+      EXPECT_DOUBLE_EQ(coverage, inside / 1000.0) << "joint " << j;
+      mean_coverage += coverage / 2.0;
+    }
+    EXPECT_DOUBLE_EQ(e["overall"]["coverage"].get<double>(), mean_coverage);
+    // Without the friction of joint 2, its band is far too narrow on the fast log.
+    if (std::string(model_name) == "pol") {
+      EXPECT_LT(e["joints"][1]["coverage"].get<double>(), 0.5);
+    }
+  }
+}
+
 TEST(Cli, EverySubcommandHasHelp) {
   TempDir dir;
   for (const char* sub : {"fit", "predict", "evaluate", "diagnose", "compare", "demo", "replay"}) {

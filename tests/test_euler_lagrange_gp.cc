@@ -512,7 +512,9 @@ TEST(EulerLagrangeGP, EvidenceOnThreadsEqualsTheOneThreadEvidence) {
     Vector g_two(3 * n);
     const double value_two = two.Evaluate(log_parameters.data(), g_two.data());
     // At 360 values the factorisation's blocked path runs: its rounding shows in the gradient.
-    if (m == 120) EXPECT_FALSE(g_two == g_one) << "the threaded factorisation did not run";
+    if (m == 120) {
+      EXPECT_FALSE(g_two == g_one) << "the threaded factorisation did not run";
+    }
     for (int threads : {2, 3, 4}) {
       SCOPED_TRACE("m = " + std::to_string(m) + ", threads = " + std::to_string(threads));
       const EulerLagrangeEvidence many(h, X, Y, parts, nullptr, threads);

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <iostream>
 #include <random>
+#include <stdexcept>
 
 #include "structgp/fit/fit_check.h"
 #include "structgp/fit/fit_model.h"
@@ -178,13 +179,38 @@ TEST(CheckOnHeldOutBlocks, CoverageCountsTheHeldOutTorquesInsideTheBand) {
       }
     }
     EXPECT_DOUBLE_EQ(check.coverage[0], inside / 250.0);
-    if (noise == 1e-4) EXPECT_LT(check.coverage[0], 0.5);
-    if (noise == 10.0) EXPECT_EQ(check.coverage[0], 1.0);
+    if (noise == 1e-4) {
+      EXPECT_LT(check.coverage[0], 0.5);
+    }
+    if (noise == 10.0) {
+      EXPECT_EQ(check.coverage[0], 1.0);
+    }
     EXPECT_NE(check.message.find("2 sigma band covers"), std::string::npos);
   }
   FitCheckOptions bad;
   bad.min_coverage = 1.5;
   EXPECT_FALSE(bad.IsValid(nullptr));
+}
+
+// BandCoverage against a count by hand: the band is 2 sqrt(latent^2 + noise^2) per joint, its
+// edge inside, a NaN mean outside; sizes are checked.
+TEST(BandCoverage, CountsTheTorquesWithinTwoNoisyStdOfTheMean) {
+  Matrix mean(4, 2), latent(4, 2), measured(4, 2);
+  mean << 0, 10, 0, 10, 0, 10, std::nan(""), 10;
+  latent << 3, 0, 3, 0, 0, 0, 3, 0;
+  Vector noise(2);
+  noise << 4, 0.5;
+  // Joint 1: band 2 * 5 = 10 on rows 1, 2 and 4, 2 * 4 = 8 on row 3 (no latent std).
+  // Joint 2: band 2 * 0.5 = 1.
+  measured << 10, 11, -10.5, 9.5, 9, 10, 0, 12;
+  const Vector c = BandCoverage(mean, latent, noise, measured);
+  ASSERT_EQ(c.size(), 2);
+  EXPECT_EQ(c[0], 1.0 / 4.0);  // row 1 on the edge; row 2 beyond; row 3 beyond 8; row 4 NaN
+  EXPECT_EQ(c[1], 3.0 / 4.0);  // rows 1-3 within 1 (row 1 on the edge), row 4 not
+  EXPECT_EQ(BandCoverage(Matrix(0, 2), Matrix(0, 2), noise, Matrix(0, 2)), Vector::Zero(2));
+  EXPECT_THROW(BandCoverage(mean, latent, Vector::Ones(3), measured), std::invalid_argument);
+  EXPECT_THROW(BandCoverage(mean, latent.topRows(3), noise, measured), std::invalid_argument);
+  EXPECT_THROW(BandCoverage(mean, latent, noise, measured.leftCols(1)), std::invalid_argument);
 }
 
 // FitModel warns of a joint whose held-out coverage is below FitCheckOptions::min_coverage,

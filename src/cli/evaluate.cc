@@ -6,6 +6,7 @@
 
 #include "commands.h"
 #include "common.h"
+#include "structgp/fit/fit_check.h"
 #include "structgp/io/model_file.h"
 
 namespace structgp {
@@ -16,7 +17,9 @@ class EvaluateCommand : public Command {
  public:
   CLI::App* Register(CLI::App* app) override {
     CLI::App* cmd = app->add_subcommand(
-        "evaluate", "RMS and normalised MSE of a model on a data file, per joint and overall");
+        "evaluate",
+        "RMS, normalised MSE and 2 sigma band coverage of a model on a data file, per joint and "
+        "overall");
     cmd->add_option("--model", model_, "Model file written by 'structgp fit'")->required();
     cmd->add_option("--data", data_, "Test data: CSV with q, qd, qdd and tau columns")->required();
     cmd->add_option("--json", json_,
@@ -24,6 +27,10 @@ class EvaluateCommand : public Command {
     cmd->footer(
         "nMSE of joint j is the mean squared error divided by the variance of the measured\n"
         "tau_j; 'all' is the RMS over every joint and sample and the mean nMSE of the joints.\n"
+        "2 sigma band: the fraction of the measured tau_j within 2 standard deviations of the\n"
+        "noisy prediction (the posterior's and the fitted noise), about 95% when the model's\n"
+        "uncertainty is calibrated on these data; far below it, the model claims more\n"
+        "certainty than it has ('all': the mean of the joints).\n"
         "Example:\n"
         "  structgp evaluate --model model.json --data test.csv --json errors.json");
     AddLoadThreadsFlag(cmd, &load_);
@@ -37,6 +44,8 @@ class EvaluateCommand : public Command {
     const RobotData data = ReadData(data_, model.num_joints());
     const Predictions p = Predict(model, data);
     const Errors e = ComputeErrors(p.mean, data.Y);
+    const Vector coverage =
+        BandCoverage(p.mean, p.std, model.hyperparameters().noise_stds(), data.Y);
     const int N = model.num_joints();
 
     nlohmann::json doc;
@@ -45,13 +54,17 @@ class EvaluateCommand : public Command {
     doc["data"] = data_;
     doc["num_samples"] = data.size();
     doc["joints"] = nlohmann::json::array();
-    std::vector<std::vector<std::string>> rows = {{"joint", "RMS", "nMSE"}};
+    std::vector<std::vector<std::string>> rows = {{"joint", "RMS", "nMSE", "2 sigma band"}};
+    const auto percent = [](double fraction) { return Format("%.1f%%", 100.0 * fraction); };
     for (int j = 0; j < N; ++j) {
-      doc["joints"].push_back({{"joint", j + 1}, {"rms", e.rms[j]}, {"nmse", e.nmse[j]}});
-      rows.push_back({std::to_string(j + 1), Format("%.4g", e.rms[j]), Format("%.4g", e.nmse[j])});
+      doc["joints"].push_back(
+          {{"joint", j + 1}, {"rms", e.rms[j]}, {"nmse", e.nmse[j]}, {"coverage", coverage[j]}});
+      rows.push_back({std::to_string(j + 1), Format("%.4g", e.rms[j]), Format("%.4g", e.nmse[j]),
+                      percent(coverage[j])});
     }
-    doc["overall"] = {{"rms", e.overall_rms}, {"nmse", e.overall_nmse}};
-    rows.push_back({"all", Format("%.4g", e.overall_rms), Format("%.4g", e.overall_nmse)});
+    doc["overall"] = {{"rms", e.overall_rms}, {"nmse", e.overall_nmse}, {"coverage", coverage.mean()}};
+    rows.push_back({"all", Format("%.4g", e.overall_rms), Format("%.4g", e.overall_nmse),
+                    percent(coverage.mean())});
 
     std::fprintf(text_out, "model  %s (%s)\ndata   %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());

@@ -10,6 +10,10 @@ double Hyperparameters::noise_variance() const { return std::exp(2.0 * log_noise
 
 Vector Hyperparameters::output_scales() const { return log_output_scale.array().exp(); }
 
+Vector Hyperparameters::noise_stds() const {
+  return (log_output_scale.array() + log_noise_std).exp().matrix();
+}
+
 void Hyperparameters::Validate(Eigen::Index num_shape, Eigen::Index num_blocks,
                                Eigen::Index num_outputs, const std::string& what) const {
   RequireSize(what + ".shape", shape.size(), num_shape);

@@ -43,6 +43,28 @@ bool FitCheckOptions::IsValid(std::string* error) const {
   return true;
 }
 
+Vector BandCoverage(const ConstMatrixRef& mean, const ConstMatrixRef& latent_std,
+                    const ConstVectorRef& noise_std, const ConstMatrixRef& measured) {
+  const Eigen::Index N = noise_std.size();
+  RequireSize("BandCoverage mean", mean.cols(), N, "columns (joints, as noise_std)");
+  RequireSize("BandCoverage latent_std", latent_std.cols(), N, "columns (joints, as noise_std)");
+  RequireSize("BandCoverage measured", measured.cols(), N, "columns (joints, as noise_std)");
+  RequireSize("BandCoverage latent_std", latent_std.rows(), mean.rows(), "rows (as mean)");
+  RequireSize("BandCoverage measured", measured.rows(), mean.rows(), "rows (as mean)");
+  Vector coverage = Vector::Zero(N);
+  if (mean.rows() == 0) return coverage;
+  for (Eigen::Index j = 0; j < N; ++j) {
+    Eigen::Index inside = 0;
+    for (Eigen::Index i = 0; i < mean.rows(); ++i) {
+      const double std = std::hypot(latent_std(i, j), noise_std[j]);
+      // false for a NaN mean: outside.
+      if (std::abs(measured(i, j) - mean(i, j)) <= 2.0 * std) ++inside;
+    }
+    coverage[j] = static_cast<double>(inside) / static_cast<double>(mean.rows());
+  }
+  return coverage;
+}
+
 FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hyper,
                               const ConstMatrixRef& X, const ConstMatrixRef& Y,
                               const FitCheckOptions& options) {
@@ -65,8 +87,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   const Vector lo = Y.colwise().minCoeff().transpose();
   const Vector hi = Y.colwise().maxCoeff().transpose();
   const Vector span = (hi - lo).cwiseMax(1e-12);
-  const Vector noise_std =
-      (hyper.log_noise_std + hyper.log_output_scale.array()).exp().matrix();
+  const Vector noise_std = hyper.noise_stds();
 
   std::vector<int> absurd(static_cast<size_t>(N), 0);
   std::vector<int> confident(static_cast<size_t>(N), 0);
@@ -85,6 +106,10 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     }
     Matrix mean, latent_std;
     fold.PredictRows(Xs.middleRows(begin, held), &mean, &latent_std);
+    const Vector fold_coverage = BandCoverage(mean, latent_std, noise_std, Ys.middleRows(begin, held));
+    for (int j = 0; j < N; ++j) {
+      covered[static_cast<size_t>(j)] += static_cast<int>(std::lround(fold_coverage[j] * held));
+    }
     for (int i = 0; i < held; ++i) {
       for (int j = 0; j < N; ++j) {
         const double mu = mean(i, j);
@@ -97,7 +122,6 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
           continue;
         }
         const double std = std::hypot(latent_std(i, j), noise_std[j]);
-        if (std::abs(Ys(begin + i, j) - mu) <= 2.0 * std) ++covered[static_cast<size_t>(j)];
         if (outside > 0.0) {
           const bool sure = outside > options.confidence_sigmas * std;
           if (sure) ++confident[static_cast<size_t>(j)];

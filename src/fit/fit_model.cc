@@ -856,9 +856,8 @@ void ReportRegressor(const RobotModel& model, const FitSummary& summary, std::os
   }
   os << Table(rows, 4);
   os << "noise std   ";
-  for (int j = 0; j < N; ++j) {
-    os << Format(" tau%d %.4g", j + 1, std::exp(h.log_noise_std + h.log_output_scale[j]));
-  }
+  const Vector noise_std = h.noise_stds();
+  for (int j = 0; j < N; ++j) os << Format(" tau%d %.4g", j + 1, noise_std[j]);
   os << "  (one per joint)\n";
   os << "log marginal likelihood " << Format("%.6g", gp.LogMarginalLikelihood()) << " nats\n";
   os << "identified   " << gp.IdentifiedDirections() << " of " << map.dim()
@@ -953,9 +952,8 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   }
   os << Table(rows, 4);
   os << "noise std   ";
-  for (int j = 0; j < N; ++j) {
-    os << Format(" tau%d %.4g", j + 1, std::exp(h.log_noise_std + h.log_output_scale[j]));
-  }
+  const Vector noise_std = h.noise_stds();
+  for (int j = 0; j < N; ++j) os << Format(" tau%d %.4g", j + 1, noise_std[j]);
   os << "  (sigma_n times the output scale)\n";
   os << "log marginal likelihood " << Format("%.6g", gp.LogMarginalLikelihood()) << " nats\n";
   const auto names = model.ParametricFeatureNames();
@@ -1048,9 +1046,7 @@ std::string ToJson(const RobotModel& model, const FitSummary& summary) {
     j["log_marginal_likelihood"] = number(model.gp().LogMarginalLikelihood());
     const Hyperparameters& h = model.hyperparameters();
     Json noise = Json::array();
-    for (int k = 0; k < model.num_joints(); ++k) {
-      noise.push_back(number(std::exp(h.log_noise_std + h.log_output_scale[k])));
-    }
+    for (double value : h.noise_stds()) noise.push_back(number(value));
     j["noise_std"] = noise;
     j["coefficients"] = Json::array();
     const bool has_coefficients =

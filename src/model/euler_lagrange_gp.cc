@@ -564,7 +564,7 @@ EulerLagrangeGPHyperparameters EulerLagrangeFromHyperparameters(
   EulerLagrangeGPHyperparameters h;
   h.sigma = std::exp(hyper.shape[0]);
   h.part_weights = hyper.shape.segment(1, 2 * n).array().exp();
-  h.noise_std = (hyper.log_output_scale.array() + hyper.log_noise_std).exp();
+  h.noise_std = hyper.noise_stds();
   if (friction) {
     h.friction_std = hyper.shape.segment(1 + 2 * n, n).array().exp();
     h.friction_velocity_scale = hyper.shape.segment(1 + 3 * n, n).array().exp();

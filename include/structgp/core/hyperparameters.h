@@ -44,6 +44,9 @@ struct Hyperparameters {
   double noise_variance() const;
   /// s_j = exp(log_output_scale[j]).
   Vector output_scales() const;
+  /// Each output's noise standard deviation s_j sigma_n = exp(log_noise_std +
+  /// log_output_scale[j]), in the output's units.
+  Vector noise_stds() const;
 
   /// Throws std::invalid_argument ("<what>.shape: expected N, got M") when the sizes differ
   /// from the given ones, a value is not finite, or log_noise_std lies outside (-50, 50).

@@ -80,6 +80,14 @@ struct FitCheck {
   std::string message;
 };
 
+/// Per joint (column), the fraction of the measured torques within 2 standard deviations of the
+/// noisy prediction, sqrt(latent_std^2 + noise_std_j^2), of the mean: about 95% when the bands
+/// are calibrated. mean, latent_std and measured are m x N, noise_std N (RobotModel's
+/// hyperparameters().noise_stds()). A row whose mean is not finite counts as outside; with no
+/// rows every fraction is 0. Throws std::invalid_argument on mismatched sizes.
+Vector BandCoverage(const ConstMatrixRef& mean, const ConstMatrixRef& latent_std,
+                    const ConstVectorRef& noise_std, const ConstMatrixRef& measured);
+
 /// Fits a fresh model of model's spec and options with hyper-parameters `hyper` on the rows
 /// of X, Y outside each contiguous block (of the evenly spaced subset) and predicts the block.
 /// X: the model's inputs (ModelInputs), Y: m x N torques. Throws std::invalid_argument on
