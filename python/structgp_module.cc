@@ -516,6 +516,13 @@ save / Model.load use the CLI's model files.
                              "True when an effect needs t (then predict needs t too)")
       .def_property_readonly("component_names", [](const Model& s) { return s.fitted("component_names").ComponentNames(); })
       .def_property_readonly("form", [](const Model& s) { return ToString(s.fitted("form").gp().form()); })
+      .def_property_readonly("noise_std",
+                             [](const Model& s) -> Vector {
+                               return s.fitted("noise_std").hyperparameters().noise_stds();
+                             },
+                             "Each joint's fitted noise standard deviation (N), in torque units: "
+                             "the noisy band of a prediction is mean +- 2 sqrt(std^2 + "
+                             "noise_std^2), std from predict(return_std=True)")
       .def_property_readonly("log_marginal_likelihood",
                              [](const Model& s) { return s.fitted("log_marginal_likelihood").gp().LogMarginalLikelihood(); })
       .def_property_readonly("summary", [](const Model& s) -> py::object {

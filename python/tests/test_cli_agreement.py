@@ -151,3 +151,17 @@ def test_a_lagk_fit_from_another_model_is_the_programs(cli, demo, tmp_path):
                                rtol=1e-10, atol=1e-10)
     with pytest.raises(ValueError, match="start_from"):
         structgp.Model("pol+fri").fit(data.X, data.Y, data.t, start_from=base)
+
+
+def test_the_noisy_band_covers_what_evaluate_says(cli, demo, cli_model, tmp_path):
+    errors = tmp_path / "errors.json"
+    run(cli, "evaluate", "--model", cli_model, "--data", demo / "test.csv", "--json", errors)
+    reported = json.loads(errors.read_text())
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model.load(str(cli_model))
+    assert model.noise_std.shape == (2,) and (model.noise_std > 0).all()
+    mean, std = model.predict(test.X, return_std=True)
+    band = 2.0 * np.sqrt(std**2 + model.noise_std**2)
+    inside = (np.abs(test.Y - mean) <= band).mean(axis=0)
+    for j in range(2):
+        assert reported["joints"][j]["coverage"] == pytest.approx(inside[j], abs=1e-12)
