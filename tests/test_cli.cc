@@ -235,17 +235,18 @@ std::map<std::string, std::vector<double>> CsvColumns(const std::string& text) {
   return columns;
 }
 
-// evaluate's 2 sigma band coverage is the fraction of the measured torques within 2 sqrt(std^2
+// evaluate's (and compare's) 2 sigma band coverage is the fraction of the measured torques within 2 sqrt(std^2
 // + noise^2) of the mean, from predict's file (the posterior std) and fit's noise levels; the
 // model without the demo's hidden friction claims too much certainty on joint 2's fast log.
-TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBand) {
+TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBandAlsoInCompare) {
   TempDir dir;
   const std::string demo = dir.File("demo");
   ASSERT_EQ(RunCli(dir, {"demo", "--out", demo, "--quiet"}).code, 0);
   const std::string test = demo + "/test.csv";
+  std::vector<Json> evaluated;
   for (const char* model_name : {"pol", "pol+fri"}) {
     SCOPED_TRACE(model_name);
-    const std::string model = dir.File("model.json");
+    const std::string model = dir.File(std::string(model_name) + ".json");
     const std::string fitted = dir.File("fit.json");
     Result r = RunCli(dir, {"fit", "--data", demo + "/train.csv", "--model", model_name, "--out",
                             model, "--json", fitted, "-q"});
@@ -284,6 +285,20 @@ TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBand) {
     if (std::string(model_name) == "pol") {
       EXPECT_LT(e["joints"][1]["coverage"].get<double>(), 0.5);
     }
+    evaluated.push_back(e);
+  }
+  // compare reports the same coverage for each model.
+  const std::string compared = dir.File("compare.json");
+  const Result r = RunCli(dir, {"compare", "--model", dir.File("pol.json"), "--model",
+                                dir.File("pol+fri.json"), "--data", test, "--json", compared});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Contains(r.out, "2 sigma band B")) << r.out;
+  const Json c = Json::parse(ReadFile(compared));
+  for (size_t k = 0; k < 2; ++k) {
+    for (int j = 0; j < 2; ++j) {
+      EXPECT_EQ(c["models"][k]["joints"][j]["coverage"], evaluated[k]["joints"][j]["coverage"]);
+    }
+    EXPECT_EQ(c["models"][k]["overall"]["coverage"], evaluated[k]["overall"]["coverage"]);
   }
 }
 

@@ -7,6 +7,7 @@
 
 #include "commands.h"
 #include "common.h"
+#include "structgp/fit/fit_check.h"
 #include "structgp/io/model_file.h"
 #include "structgp/report/report.h"
 
@@ -29,7 +30,9 @@ class CompareCommand : public Command {
                     "Also write an HTML report with the models' predictions overlaid (- for "
                     "stdout)");
     cmd->footer(
-        "The change column is the relative change of the RMS from the first model.\n"
+        "The change column is the relative change of the RMS from the first model; the 2 sigma\n"
+        "band columns the fraction of the measured torques within 2 standard deviations of\n"
+        "each model's noisy prediction (about 95% when calibrated; see 'evaluate').\n"
         "Example:\n"
         "  structgp compare --model before.json --model after.json --data test.csv "
         "--report compare.html");
@@ -58,6 +61,7 @@ class CompareCommand : public Command {
     const int N = data.num_joints;
     std::vector<std::pair<std::string, Predictions>> predictions;
     std::vector<Errors> errors;
+    std::vector<Vector> coverage;  // per model, per joint: the 2 sigma band's
     std::vector<std::string> labels;
     for (size_t k = 0; k < models.size(); ++k) {
       std::string label = ModelLabel(models[k].spec());
@@ -66,13 +70,19 @@ class CompareCommand : public Command {
       }
       labels.push_back(label);
       predictions.emplace_back(label, Predict(models[k], data));
-      errors.push_back(ComputeErrors(predictions.back().second.mean, data.Y));
+      const Predictions& p = predictions.back().second;
+      errors.push_back(ComputeErrors(p.mean, data.Y));
+      coverage.push_back(
+          BandCoverage(p.mean, p.std, models[k].hyperparameters().noise_stds(), data.Y));
     }
 
     std::vector<std::vector<std::string>> rows = {{"joint"}};
     for (size_t k = 0; k < models.size(); ++k) {
       rows[0].push_back(Format("RMS %c", static_cast<char>('A' + k)));
       if (k > 0) rows[0].push_back("change");
+    }
+    for (size_t k = 0; k < models.size(); ++k) {
+      rows[0].push_back(Format("2 sigma band %c", static_cast<char>('A' + k)));
     }
     nlohmann::json doc;
     doc["data"] = data_;
@@ -84,14 +94,18 @@ class CompareCommand : public Command {
       m["label"] = labels[k];
       m["joints"] = nlohmann::json::array();
       for (int j = 0; j < N; ++j) {
-        nlohmann::json entry = {
-            {"joint", j + 1}, {"rms", errors[k].rms[j]}, {"nmse", errors[k].nmse[j]}};
+        nlohmann::json entry = {{"joint", j + 1},
+                                {"rms", errors[k].rms[j]},
+                                {"nmse", errors[k].nmse[j]},
+                                {"coverage", coverage[k][j]}};
         if (k > 0) {
           entry["relative_rms_change"] = (errors[k].rms[j] - errors[0].rms[j]) / errors[0].rms[j];
         }
         m["joints"].push_back(entry);
       }
-      m["overall"] = {{"rms", errors[k].overall_rms}, {"nmse", errors[k].overall_nmse}};
+      m["overall"] = {{"rms", errors[k].overall_rms},
+                      {"nmse", errors[k].overall_nmse},
+                      {"coverage", coverage[k].mean()}};
       doc["models"].push_back(m);
     }
     for (int j = 0; j <= N; ++j) {
@@ -101,6 +115,9 @@ class CompareCommand : public Command {
         const double base = j < N ? errors[0].rms[j] : errors[0].overall_rms;
         row.push_back(Format("%.4g", rms));
         if (k > 0) row.push_back(RelativeChange(base, rms));
+      }
+      for (size_t k = 0; k < models.size(); ++k) {
+        row.push_back(Format("%.1f%%", 100.0 * (j < N ? coverage[k][j] : coverage[k].mean())));
       }
       rows.push_back(row);
     }
