@@ -216,20 +216,20 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   EXPECT_FALSE(std::filesystem::exists(dir.File("never.json")));
 }
 
-// The columns of a CSV file by header name (numbers only).
-std::map<std::string, std::vector<double>> CsvColumns(const std::string& text) {
-  std::istringstream lines(text);
+// The columns of a CSV file with a header, by name.
+std::map<std::string, std::vector<double>> ReadColumns(const std::string& path) {
+  std::istringstream in(ReadFile(path));
   std::string line;
-  std::getline(lines, line);
+  std::getline(in, line);
   std::vector<std::string> names;
   std::istringstream header(line);
   for (std::string name; std::getline(header, name, ',');) names.push_back(name);
   std::map<std::string, std::vector<double>> columns;
-  while (std::getline(lines, line)) {
-    std::istringstream fields(line);
-    std::string field;
-    for (size_t k = 0; k < names.size() && std::getline(fields, field, ','); ++k) {
-      columns[names[k]].push_back(std::stod(field));
+  while (std::getline(in, line)) {
+    std::istringstream cells(line);
+    std::string cell;
+    for (size_t k = 0; k < names.size() && std::getline(cells, cell, ','); ++k) {
+      columns[names[k]].push_back(std::stod(cell));
     }
   }
   return columns;
@@ -259,8 +259,8 @@ TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBandAlsoInCompare)
     EXPECT_TRUE(Contains(r.out, "2 sigma band")) << r.out;
 
     const Json noise = Json::parse(ReadFile(fitted))["noise_std"];
-    auto measured = CsvColumns(ReadFile(test));
-    auto predicted = CsvColumns(ReadFile(dir.File("pred.csv")));
+    auto measured = ReadColumns(test);
+    auto predicted = ReadColumns(dir.File("pred.csv"));
     const Json e = Json::parse(ReadFile(errors));
     double mean_coverage = 0.0;
     for (int j = 1; j <= 2; ++j) {
@@ -518,25 +518,6 @@ TEST(Cli, BadInputGivesExitCode2AClearMessageAndNoOutput) {
 }
 
 // ---- diagnose --train and --significance ---------------------------------------------------
-
-// The columns of a CSV file with a header, by name.
-std::map<std::string, std::vector<double>> ReadColumns(const std::string& path) {
-  std::istringstream in(ReadFile(path));
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::istringstream header(line);
-  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
-  std::map<std::string, std::vector<double>> columns;
-  while (std::getline(in, line)) {
-    std::istringstream cells(line);
-    std::string cell;
-    for (size_t k = 0; k < names.size() && std::getline(cells, cell, ','); ++k) {
-      columns[names[k]].push_back(std::stod(cell));
-    }
-  }
-  return columns;
-}
 
 // Distance of each row of the log to the nearest of the training rows `every`-th row apart,
 // in joint j's (q, qd, qdd) standardised by the mean and standard deviation of all the
