@@ -126,7 +126,7 @@ ReportData MakeReport(int joints, int n, bool with_suggestions) {
   for (int j = 1; j <= joints; ++j) data.joints.push_back(MakeJoint(j, n, &rng));
   data.has_diagnosis = true;
   data.diagnosis = MakeDiagnosis(joints, with_suggestions);
-  ModelErrors before{"pol", {}, {}}, after{"pol + coulomb@1", {}, {}};
+  ModelErrors before{"pol", {}, {}, {}}, after{"pol + coulomb@1", {}, {}, {}};
   for (int j = 0; j < joints; ++j) {
     before.rms.push_back(0.4);
     before.nmse.push_back(0.05);
@@ -519,6 +519,19 @@ TEST(Report, ComparesErrorsOfTheModels) {
   EXPECT_NE(html.find("0.052<span class=\"chg better\">-87%</span>"), std::string::npos);
   EXPECT_NE(html.find("0.42<span class=\"chg worse\">+5.0%</span>"), std::string::npos);
   EXPECT_NE(html.find("0.0009<span class=\"chg better\">-98%</span>"), std::string::npos);
+  // No band coverage given: no column for it.
+  EXPECT_EQ(html.find("band</th>"), std::string::npos);
+  // With it (here for the second model only), a third column per model, the mean on "all".
+  data.errors[1].coverage = {0.25, 0.95};
+  const std::string with_band = RenderHtml(data);
+  EXPECT_NE(with_band.find("<th class=\"text\" colspan=\"3\">pol + coulomb@1</th>"),
+            std::string::npos);
+  EXPECT_NE(with_band.find("band</th>"), std::string::npos);
+  EXPECT_NE(with_band.find("<td>25%</td>"), std::string::npos) << with_band;
+  EXPECT_NE(with_band.find("<td>95%</td>"), std::string::npos);
+  EXPECT_NE(with_band.find("<td>60%</td>"), std::string::npos);  // all: (25 + 95) / 2
+  data.errors[1].coverage = {0.25};
+  EXPECT_THROW(RenderHtml(data), std::invalid_argument);
   // Without errors, no table.
   data.errors.clear();
   EXPECT_EQ(RenderHtml(data).find("id=\"errors\""), std::string::npos);

@@ -183,8 +183,9 @@ Predictions Predict(const RobotModel& model, const RobotData& data) {
   return p;
 }
 
-report::ModelErrors ReportErrors(const std::string& label, const Errors& errors) {
-  return report::ToModelErrors(label, errors);
+report::ModelErrors ReportErrors(const std::string& label, const Errors& errors,
+                                 const Vector& coverage) {
+  return report::ToModelErrors(label, errors, coverage);
 }
 
 std::string RelativeChange(double before, double after) {

@@ -122,7 +122,8 @@ struct Predictions {
 Predictions Predict(const RobotModel& model, const RobotData& data);
 
 /// The errors of one model for a report.
-report::ModelErrors ReportErrors(const std::string& label, const Errors& errors);
+report::ModelErrors ReportErrors(const std::string& label, const Errors& errors,
+                                 const Vector& coverage = Vector());
 
 using internal::Format;
 using internal::Table;

@@ -130,7 +130,7 @@ class CompareCommand : public Command {
       r.data_source = data_;
       r.joints = ReportJoints(data, predictions);
       for (size_t k = 0; k < models.size(); ++k) {
-        r.errors.push_back(ReportErrors(labels[k], errors[k]));
+        r.errors.push_back(ReportErrors(labels[k], errors[k], coverage[k]));
         r.notes.push_back(Format("model %c: %s (%s)", static_cast<char>('A' + k), labels[k].c_str(),
                                  models_[k].c_str()));
       }

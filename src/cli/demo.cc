@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "common.h"
+#include "structgp/fit/fit_check.h"
 #include "structgp/io/csv.h"
 #include "structgp/io/model_file.h"
 #include "structgp/report/report.h"
@@ -151,7 +152,9 @@ class DemoCommand : public Command {
     std::vector<std::pair<std::string, Predictions>> series = {
         {ModelLabel(before_spec), before_pred}};
     std::vector<report::ModelErrors> report_errors = {
-        ReportErrors(ModelLabel(before_spec), before_err)};
+        ReportErrors(ModelLabel(before_spec), before_err,
+                     BandCoverage(before_pred.mean, before_pred.std,
+                                  before.hyperparameters().noise_stds(), test.Y))};
     nlohmann::json comparison;
     comparison["robot"] = chain ? urdf_.urdf : robot_;
     comparison["hidden_effect"] = effect_;
@@ -176,7 +179,10 @@ class DemoCommand : public Command {
       }
       outputs.push_back({"--out", after_path, ModelFileText(after)});
       series.emplace_back(ModelLabel(after_spec), after_pred);
-      report_errors.push_back(ReportErrors(ModelLabel(after_spec), after_err));
+      report_errors.push_back(
+          ReportErrors(ModelLabel(after_spec), after_err,
+                       BandCoverage(after_pred.mean, after_pred.std,
+                                    after.hyperparameters().noise_stds(), test.Y)));
       comparison["after"] = {{"label", ModelLabel(after_spec)}, {"file", after_path}};
     } else {
       std::printf("3. nothing to add: the model is kept as it is\n");

@@ -343,6 +343,11 @@ void CheckInput(const ReportData& data, int max_points_per_plot) {
                                   std::to_string(e.rms.size()) + " joints, nmse has " +
                                   std::to_string(e.nmse.size()) + " (expected the same)");
     }
+    if (!e.coverage.empty() && e.coverage.size() != e.rms.size()) {
+      throw std::invalid_argument("RenderHtml: errors of '" + e.label + "': coverage has " +
+                                  std::to_string(e.coverage.size()) + " joints, rms has " +
+                                  std::to_string(e.rms.size()) + " (expected the same, or none)");
+    }
   }
 }
 
@@ -508,7 +513,7 @@ void AppendHeader(const ReportData& data, std::string* html) {
 }
 
 // Rows: joints (and all joints together); columns: RMS and nMSE of each model, with the change
-// from the first model for the others.
+// from the first model for the others, and the 2 sigma band's coverage when a model has it.
 void AppendErrors(const ReportData& data, std::string* html) {
   if (data.errors.empty()) return;
   std::size_t num_joints = 0;
@@ -524,29 +529,45 @@ void AppendErrors(const ReportData& data, std::string* html) {
     for (const double x : v) sum += quadratic ? x * x : x;
     return quadratic ? std::sqrt(sum / v.size()) : sum / v.size();
   };
+  const bool with_coverage =
+      std::any_of(data.errors.begin(), data.errors.end(),
+                  [](const ModelErrors& e) { return !e.coverage.empty(); });
   const auto cells = [&](std::size_t m, double rms, double nmse, double base_rms,
-                         double base_nmse) {
+                         double base_nmse, double coverage) {
     std::string s = "<td>" + FormatNumber(rms, kTableDigits);
     if (m > 0) s += ChangeBadge(base_rms, rms);
     s += "</td><td>" + FormatNumber(nmse, kTableDigits);
     if (m > 0) s += ChangeBadge(base_nmse, nmse);
-    return s + "</td>";
+    s += "</td>";
+    if (with_coverage) {
+      s += "<td>" + FormatNumber(100.0 * coverage, 3) + (std::isfinite(coverage) ? "%" : "") +
+           "</td>";
+    }
+    return s;
   };
 
   *html +=
       "<section id=\"errors\">\n<h2>Errors per joint</h2>\n<table>\n<thead><tr>"
       "<th class=\"text\" rowspan=\"2\">Joint</th>";
   for (const ModelErrors& e : data.errors) {
-    *html += "<th class=\"text\" colspan=\"2\">" + Escape(e.label) + "</th>";
+    *html += std::string("<th class=\"text\" colspan=\"") + (with_coverage ? "3" : "2") +
+             "\">" + Escape(e.label) + "</th>";
   }
   *html += "</tr>\n<tr>";
-  for (std::size_t m = 0; m < data.errors.size(); ++m) *html += "<th>RMS</th><th>nMSE</th>";
+  for (std::size_t m = 0; m < data.errors.size(); ++m) {
+    *html += "<th>RMS</th><th>nMSE</th>";
+    if (with_coverage) {
+      *html += "<th title=\"fraction of the measured torques within 2 standard deviations of "
+               "the noisy prediction; about 95% when calibrated\">2&sigma; band</th>";
+    }
+  }
   *html += "</tr></thead>\n<tbody>\n";
   for (std::size_t i = 0; i < num_joints; ++i) {
     *html += "<tr><td class=\"text\">" + std::to_string(i + 1) + "</td>";
     for (std::size_t m = 0; m < data.errors.size(); ++m) {
       const ModelErrors& e = data.errors[m];
-      *html += cells(m, value(e.rms, i), value(e.nmse, i), value(base.rms, i), value(base.nmse, i));
+      *html += cells(m, value(e.rms, i), value(e.nmse, i), value(base.rms, i), value(base.nmse, i),
+                     value(e.coverage, i));
     }
     *html += "</tr>\n";
   }
@@ -557,7 +578,7 @@ void AppendErrors(const ReportData& data, std::string* html) {
     for (std::size_t m = 0; m < data.errors.size(); ++m) {
       const ModelErrors& e = data.errors[m];
       *html += cells(m, total(e.rms, true), total(e.nmse, false), total(base.rms, true),
-                     total(base.nmse, false));
+                     total(base.nmse, false), total(e.coverage, false));
     }
     *html += "</tr>\n";
   }

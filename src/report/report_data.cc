@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "structgp/fit/fit_check.h"
 #include "structgp/fit/fit_model.h"
 
 namespace structgp {
@@ -38,9 +39,10 @@ PredictionErrors ComputeErrors(const Matrix& predicted, const Matrix& measured) 
   return e;
 }
 
-ModelErrors ToModelErrors(const std::string& label, const PredictionErrors& errors) {
+ModelErrors ToModelErrors(const std::string& label, const PredictionErrors& errors,
+                          const Vector& coverage) {
   auto values = [](const Vector& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
-  return ModelErrors{label, values(errors.rms), values(errors.nmse)};
+  return ModelErrors{label, values(errors.rms), values(errors.nmse), values(coverage)};
 }
 
 std::vector<JointData> JointSeries(const RobotData& data,
@@ -102,7 +104,9 @@ ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
   r.joints = JointSeries(data, {p});
   r.has_diagnosis = true;
   r.diagnosis = diagnosis;
-  r.errors.push_back(ToModelErrors(p.label, ComputeErrors(p.mean, data.Y)));
+  r.errors.push_back(
+      ToModelErrors(p.label, ComputeErrors(p.mean, data.Y),
+                    BandCoverage(p.mean, p.std, model.hyperparameters().noise_stds(), data.Y)));
   return r;
 }
 

@@ -61,6 +61,9 @@ struct ModelErrors {
   std::string label;
   std::vector<double> rms;   ///< per joint
   std::vector<double> nmse;  ///< per joint
+  /// Per joint, the fraction of the measured torques inside the noisy 2 sigma band
+  /// (BandCoverage, fit/fit_check.h); empty when the band is not known (no column then).
+  std::vector<double> coverage;
 };
 
 struct ReportData {

@@ -41,8 +41,10 @@ struct PredictionErrors {
 };
 PredictionErrors ComputeErrors(const Matrix& predicted, const Matrix& measured);
 
-/// The errors of one model as a report shows them.
-ModelErrors ToModelErrors(const std::string& label, const PredictionErrors& errors);
+/// The errors of one model as a report shows them; with `coverage` (per joint, BandCoverage of
+/// fit/fit_check.h), also its 2 sigma band's coverage.
+ModelErrors ToModelErrors(const std::string& label, const PredictionErrors& errors,
+                          const Vector& coverage = Vector());
 
 /// The per-joint series of a report: t (or the row index without times), q, qd, the measured
 /// torque and each model's predictions.
