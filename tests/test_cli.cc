@@ -235,9 +235,10 @@ std::map<std::string, std::vector<double>> ReadColumns(const std::string& path) 
   return columns;
 }
 
-// evaluate's (and compare's) 2 sigma band coverage is the fraction of the measured torques within 2 sqrt(std^2
-// + noise^2) of the mean, from predict's file (the posterior std) and fit's noise levels; the
-// model without the demo's hidden friction claims too much certainty on joint 2's fast log.
+// evaluate's (and compare's) 2 sigma band coverage is the fraction of the measured torques
+// within 2 sqrt(std^2 + noise^2) of the mean, from predict's file (the posterior std) and fit's
+// noise levels; the model without the demo's hidden friction claims too much certainty on
+// joint 2's fast log.
 TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBandAlsoInCompare) {
   TempDir dir;
   const std::string demo = dir.File("demo");

@@ -179,8 +179,8 @@ TEST(ModelLabelText, RoundTripsAndReadsTheShortForms) {
   EXPECT_EQ(short_form.effects[0].params.at("width"), 10.0);
   EXPECT_EQ(ParseModelLabel("pol+fri+viscous").effects.size(), 1u);
   // A URDF's torques beside a kernel base: "rbd+" is part of the model, not an effect.
-  for (const char* label : {"rbd+pol", "rbd+rbf+fri", "rbd+rbfs + offset", "rbd+motor+fri + coulomb@2",
-                            "rbd+fri + coulomb@1"}) {
+  for (const char* label : {"rbd+pol", "rbd+rbf+fri", "rbd+rbfs + offset",
+                            "rbd+motor+fri + coulomb@2", "rbd+fri + coulomb@1"}) {
     const ModelSpec urdf = ParseModelLabel(label);
     EXPECT_EQ(ModelLabel(ParseModelLabel(ModelLabel(urdf))), ModelLabel(urdf)) << label;
     EXPECT_EQ(ModelLabel(urdf), label) << label;

@@ -62,7 +62,8 @@ class EvaluateCommand : public Command {
       rows.push_back({std::to_string(j + 1), Format("%.4g", e.rms[j]), Format("%.4g", e.nmse[j]),
                       percent(coverage[j])});
     }
-    doc["overall"] = {{"rms", e.overall_rms}, {"nmse", e.overall_nmse}, {"coverage", coverage.mean()}};
+    doc["overall"] = {
+        {"rms", e.overall_rms}, {"nmse", e.overall_nmse}, {"coverage", coverage.mean()}};
     rows.push_back({"all", Format("%.4g", e.overall_rms), Format("%.4g", e.overall_nmse),
                     percent(coverage.mean())});
 

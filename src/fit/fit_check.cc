@@ -106,7 +106,8 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     }
     Matrix mean, latent_std;
     fold.PredictRows(Xs.middleRows(begin, held), &mean, &latent_std);
-    const Vector fold_coverage = BandCoverage(mean, latent_std, noise_std, Ys.middleRows(begin, held));
+    const Vector fold_coverage =
+        BandCoverage(mean, latent_std, noise_std, Ys.middleRows(begin, held));
     for (int j = 0; j < N; ++j) {
       covered[static_cast<size_t>(j)] += static_cast<int>(std::lround(fold_coverage[j] * held));
     }
