@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "structgp/feature/effects.h"
 
@@ -16,6 +18,23 @@ std::string Trim(const std::string& s) {
   if (b == std::string::npos) return "";
   const auto e = s.find_last_not_of(" \t");
   return s.substr(b, e - b + 1);
+}
+
+// The items of a model text between its '+' signs, as written (not trimmed).
+std::vector<std::string> SplitAtPlus(const std::string& text) {
+  std::vector<std::string> items;
+  for (size_t start = 0;;) {
+    const size_t plus = text.find('+', start);
+    items.push_back(text.substr(start, plus == std::string::npos ? std::string::npos
+                                                                 : plus - start));
+    if (plus == std::string::npos) return items;
+    start = plus + 1;
+  }
+}
+
+// A base that "rbd+" may precede (a URDF's torques beside it).
+bool IsKernelBase(const std::string& base) {
+  return base == "pol" || base == "rbf" || base == "rbfs" || base == "motor";
 }
 
 [[noreturn]] void Fail(const std::string& text, size_t position, const std::string& message) {
@@ -86,20 +105,11 @@ ModelSpec ParseModelSpec(const std::string& model) {
   const std::string text = Trim(model);
   ModelSpec spec;
   // base, or "rbd+" base; then "+fri" optionally.
-  std::vector<std::string> tokens;
-  for (size_t start = 0;;) {
-    const size_t plus = text.find('+', start);
-    tokens.push_back(Trim(text.substr(start, plus == std::string::npos ? std::string::npos
-                                                                       : plus - start)));
-    if (plus == std::string::npos) break;
-    start = plus + 1;
-  }
+  std::vector<std::string> tokens = SplitAtPlus(text);
+  for (std::string& token : tokens) token = Trim(token);
   size_t next = 0;
   std::string base = tokens[next++];
-  const auto is_kernel_base = [](const std::string& t) {
-    return t == "pol" || t == "rbf" || t == "rbfs" || t == "motor";
-  };
-  if (base == "rbd" && next < tokens.size() && is_kernel_base(tokens[next])) {
+  if (base == "rbd" && next < tokens.size() && IsKernelBase(tokens[next])) {
     spec.rigid_body_features = true;
     base = tokens[next++];
   }
@@ -137,28 +147,21 @@ ModelSpec ParseModelLabel(const std::string& text) {
   // The model as ParseModelSpec reads it ("rbd+" before a kernel base, then "+fri", each only
   // as a whole item, so an effect whose name starts with "fri" still reads as an effect), then
   // after the next '+' the effect list.
-  std::vector<std::string> items;
-  for (size_t start = 0;;) {
-    const size_t plus = text.find('+', start);
-    items.push_back(text.substr(start, plus == std::string::npos ? std::string::npos
-                                                                 : plus - start));
-    if (plus == std::string::npos) break;
-    start = plus + 1;
-  }
-  size_t taken = 1;
+  const std::vector<std::string> items = SplitAtPlus(text);
   const auto item_is = [&](size_t k, const char* word) {
     return k < items.size() && Trim(items[k]) == word;
   };
-  if (item_is(0, "rbd") &&
-      (item_is(1, "pol") || item_is(1, "rbf") || item_is(1, "rbfs") || item_is(1, "motor"))) {
-    taken = 2;
-  }
+  size_t taken = 1;
+  if (item_is(0, "rbd") && items.size() > 1 && IsKernelBase(Trim(items[1]))) taken = 2;
   if (item_is(taken, "fri")) ++taken;
-  std::string model, rest;
-  for (size_t k = 0; k < items.size(); ++k) {
-    std::string& part = k < taken ? model : rest;
-    part += (part.empty() && (k == 0 || k == taken) ? "" : "+") + items[k];
-  }
+  // items [from, to) joined again by '+'.
+  const auto join = [&items](size_t from, size_t to) {
+    std::string joined;
+    for (size_t k = from; k < to; ++k) joined += (k > from ? "+" : "") + items[k];
+    return joined;
+  };
+  const std::string model = join(0, taken);
+  const std::string rest = join(taken, items.size());
   if (taken < items.size() && Trim(rest).empty()) {
     throw std::invalid_argument("model '" + text + "': '+' must be followed by " +
                                 (item_is(taken - 1, "fri") ? "" : "'fri' or ") +
