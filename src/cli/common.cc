@@ -188,6 +188,8 @@ report::ModelErrors ReportErrors(const std::string& label, const Errors& errors,
   return report::ToModelErrors(label, errors, coverage);
 }
 
+std::string Percent(double fraction) { return Format("%.1f%%", 100.0 * fraction); }
+
 std::string RelativeChange(double before, double after) {
   if (!(before > 0.0) || !std::isfinite(before) || !std::isfinite(after)) return "n/a";
   return Format("%+.1f%%", 100.0 * (after - before) / before);

@@ -129,6 +129,8 @@ using internal::Format;
 using internal::Table;
 /// "-89.0%" style relative change from a to b.
 std::string RelativeChange(double before, double after);
+/// "94.3%": a fraction in percent (a band's coverage).
+std::string Percent(double fraction);
 
 /// The library's DiagnosisReport and the command that refits with every suggestion.
 std::string DiagnosisSummary(const Diagnosis& diagnosis, const ModelSpec& spec,

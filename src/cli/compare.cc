@@ -117,7 +117,7 @@ class CompareCommand : public Command {
         if (k > 0) row.push_back(RelativeChange(base, rms));
       }
       for (size_t k = 0; k < models.size(); ++k) {
-        row.push_back(Format("%.1f%%", 100.0 * (j < N ? coverage[k][j] : coverage[k].mean())));
+        row.push_back(Percent(j < N ? coverage[k][j] : coverage[k].mean()));
       }
       rows.push_back(row);
     }

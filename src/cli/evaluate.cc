@@ -55,17 +55,16 @@ class EvaluateCommand : public Command {
     doc["num_samples"] = data.size();
     doc["joints"] = nlohmann::json::array();
     std::vector<std::vector<std::string>> rows = {{"joint", "RMS", "nMSE", "2 sigma band"}};
-    const auto percent = [](double fraction) { return Format("%.1f%%", 100.0 * fraction); };
     for (int j = 0; j < N; ++j) {
       doc["joints"].push_back(
           {{"joint", j + 1}, {"rms", e.rms[j]}, {"nmse", e.nmse[j]}, {"coverage", coverage[j]}});
       rows.push_back({std::to_string(j + 1), Format("%.4g", e.rms[j]), Format("%.4g", e.nmse[j]),
-                      percent(coverage[j])});
+                      Percent(coverage[j])});
     }
     doc["overall"] = {
         {"rms", e.overall_rms}, {"nmse", e.overall_nmse}, {"coverage", coverage.mean()}};
     rows.push_back({"all", Format("%.4g", e.overall_rms), Format("%.4g", e.overall_nmse),
-                    percent(coverage.mean())});
+                    Percent(coverage.mean())});
 
     std::fprintf(text_out, "model  %s (%s)\ndata   %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());

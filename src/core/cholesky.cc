@@ -251,7 +251,8 @@ CholeskyResult Cholesky::Factorize(const ConstMatrixRef& A, const CholeskyOption
       }
     }
   } catch (...) {
-    // A thread that could not start (the threaded path): no half-done factor is left behind.
+    // An exception from the threaded path (an allocation of its chunk lists; a thread that
+    // cannot start is not one: its chunks run on this thread): no half-done factor is left.
     factor_.setZero();
     throw;
   }
