@@ -437,6 +437,51 @@ TEST(Calibration, AnEffectOnlyTheDiagnosedLogHasIsNamedOnTheLogAlone) {
   }
 }
 
+// An effect that only the diagnosed log has is confirmed on unseen blocks of that log, where it
+// acts: the training rows, which do not have it, are in every block's fit. Here the log is a
+// fifth of the rows, so blocks over training and log together would hold the whole log out at
+// once and leave the effect's columns nothing to be fitted on (held-out ratio 1 in every block:
+// refused). On the diagnosed log's own blocks it is found in every one. An effect the robot has
+// in both logs is confirmed on blocks of every row, as before.
+TEST(Calibration, AnEffectOnlyTheLogHasIsConfirmedOnTheLogsOwnBlocks) {
+  auto step = Clean(HiddenEffect::kCoulomb, 2, 0.1, 10.0);
+  auto only_log = Clean(HiddenEffect::kNone, 2, 0.0, 10.0);
+  only_log.test.Y += step.hidden_test;
+  sim::Dataset train = only_log.train, test = only_log.test;
+  AddWhiteNoise(0.01, 15, &train);
+  AddWhiteNoise(0.01, 16, &test);
+  ASSERT_EQ(train.X.rows(), 4 * test.X.rows());  // the log is a fifth of the rows
+  const RobotModel model = Fit(ParseModelSpec("pol"), train);
+  const DiagnosisOptions options = WithTraining(train);
+  const Diagnosis d = Diagnose(model, test.X, test.Y, test.t, options);
+  std::printf("in the log only, a fifth of the rows:\n%s", ToJson(d).c_str());
+  ASSERT_FALSE(d.suggestions.empty());
+  const Suggestion& s = d.suggestions.front();
+  EXPECT_EQ(s.joint, 2) << s.spec;
+  EXPECT_TRUE(s.effect == "coulomb" || s.effect == "stribeck") << s.spec;
+  EXPECT_EQ(s.scope, "log") << s.spec;
+  EXPECT_EQ(s.confirmation, "blocks");
+  EXPECT_EQ(s.confirmation_folds, options.folds);
+  EXPECT_EQ(s.folds_improved, options.folds);
+  EXPECT_LT(s.fold_rms_ratio, 0.5);
+  // rms_before / rms_after pool the log's blocks: the log's rows, not every row.
+  const double log_rms = std::sqrt((test.Y.col(1).array() - test.Y.col(1).mean()).square().mean());
+  EXPECT_LT(s.rms_before, log_rms);
+  EXPECT_LT(s.rms_after, s.rms_before);
+
+  // The same step in both logs: named on every row, confirmed on blocks of every row.
+  sim::Dataset train_both = step.train, test_both = step.test;
+  AddWhiteNoise(0.01, 17, &train_both);
+  AddWhiteNoise(0.01, 18, &test_both);
+  const RobotModel both_model = Fit(ParseModelSpec("pol"), train_both);
+  const Diagnosis both = Diagnose(both_model, test_both.X, test_both.Y, test_both.t,
+                                  WithTraining(train_both));
+  ASSERT_FALSE(both.suggestions.empty());
+  EXPECT_EQ(both.suggestions.front().joint, 2) << both.suggestions.front().spec;
+  EXPECT_EQ(both.suggestions.front().scope, "all") << both.suggestions.front().spec;
+  EXPECT_EQ(both.suggestions.front().folds_improved, options.folds);
+}
+
 // Coulomb + viscous + Stribeck on one joint: the suggestions on that joint, added to the
 // model, predict a new fast log about as well as the true effects do.
 TEST(Calibration, CorrelatedFrictionEffectsTogetherMatchTheTrueOnes) {

@@ -388,6 +388,15 @@ void OrderFindings(const DiagnosisOptions& options, Diagnosis* d) {
   }
 }
 
+// Held-out blocks of the confirmation and the statistics of each block's fit.
+struct FoldSet {
+  std::vector<std::pair<int, int>> ranges;  // (first row, rows) of each held-out block
+  int gap = 0;                              // rows left out on each side (same trajectory)
+  bool by_trajectory = false;               // blocks are whole trajectories
+  int held_out_rows = 0;                    // rows of all blocks
+  std::vector<Matrix> G, cross;             // Phi^T Phi and Phi^T Y of each block's fit rows
+};
+
 // Diagnose, with numerical trouble deep inside (a profile of the evidence, the Nystrom
 // factorisation, a prediction) as std::runtime_error.
 // only_joint (1-based, 0: every joint): the candidates of that joint alone; a model with a
@@ -637,54 +646,76 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       col += static_cast<int>(E.cols());
     }
   }
-  const bool by_trajectory = static_cast<int>(starts.size()) >= options.folds;
-  const auto fold_ranges = Folds(m, options.folds, starts);
-  // The gap: rows next to a held-out block (same trajectory) are too correlated with it to
-  // count as unseen; they are left out of that block's fit.
-  int gap = 0;
-  if (!by_trajectory) {
-    int smallest = m;
-    for (const auto& [begin, count] : fold_ranges) smallest = std::min(smallest, count);
-    gap = options.confirmation_gap >= 0 ? options.confirmation_gap
-                                        : CorrelationLength(
-                                              only_joint > 0 ? Matrix(refit_residual.col(only_joint - 1))
-                                                             : refit_residual,
-                                              starts, 0.1);
-    gap = std::min(gap, smallest / 2);
-  }
   std::vector<int> segment_of(static_cast<size_t>(m));
   for (size_t s = 0; s < starts.size(); ++s) {
     const int end = s + 1 < starts.size() ? starts[s + 1] : m;
     for (int i = starts[s]; i < end; ++i) segment_of[static_cast<size_t>(i)] = static_cast<int>(s);
   }
-  // Statistics of each fold and of its gap rows; the total is the sum over folds, a fold's
-  // training set the total minus the fold and its gaps.
-  std::vector<Matrix> fold_gram, fold_cross;
-  Matrix G_total = Matrix::Zero(next_col, next_col), cross_total = Matrix::Zero(next_col, N);
   auto statistics = [&](const std::vector<int>& rows, Matrix* G, Matrix* cross) {
     SufficientStatistics s(next_col, N);
     if (!rows.empty()) s.Accumulate(F(rows, Eigen::all), Yg(rows, Eigen::all));
     *G = s.gram.selfadjointView<Eigen::Lower>();
     *cross = std::move(s.cross);
   };
-  std::vector<std::vector<int>> gap_rows(fold_ranges.size());
-  for (size_t f = 0; f < fold_ranges.size(); ++f) {
-    const auto [begin, count] = fold_ranges[f];
+  Matrix G_total, cross_total;
+  {
     SufficientStatistics s(next_col, N);
-    s.Accumulate(F.middleRows(begin, count), Yg.middleRows(begin, count));
-    Matrix G = s.gram.selfadjointView<Eigen::Lower>();
-    G_total += G;
-    cross_total += s.cross;
-    fold_gram.push_back(std::move(G));
-    fold_cross.push_back(std::move(s.cross));
-    const int end = begin + count;
-    for (int i = std::max(0, begin - gap); i < begin; ++i) {
-      if (segment_of[i] == segment_of[begin]) gap_rows[f].push_back(i);
-    }
-    for (int i = end; i < std::min(m, end + gap); ++i) {
-      if (segment_of[i] == segment_of[end - 1]) gap_rows[f].push_back(i);
-    }
+    s.Accumulate(F, Yg);
+    G_total = s.gram.selfadjointView<Eigen::Lower>();
+    cross_total = std::move(s.cross);
   }
+  // Held-out blocks of the rows first.. first + count - 1 (whole trajectories when they hold
+  // enough of them), each block's fit on every other row but the gap: rows next to a held-out
+  // block (same trajectory) are too correlated with it to count as unseen.
+  auto make_folds = [&](int first, int count) {
+    FoldSet set;
+    std::vector<int> local_starts;
+    for (int s : starts) {
+      if (s >= first && s < first + count) local_starts.push_back(s - first);
+    }
+    set.by_trajectory = static_cast<int>(local_starts.size()) >= options.folds;
+    set.ranges = Folds(count, options.folds, local_starts);
+    for (auto& range : set.ranges) range.first += first;
+    if (!set.by_trajectory) {
+      int smallest = count;
+      for (const auto& [begin, size] : set.ranges) smallest = std::min(smallest, size);
+      const Matrix part = refit_residual.middleRows(first, count);
+      set.gap = options.confirmation_gap >= 0
+                    ? options.confirmation_gap
+                    : CorrelationLength(only_joint > 0 ? Matrix(part.col(only_joint - 1)) : part,
+                                        local_starts, 0.1);
+      set.gap = std::min(set.gap, smallest / 2);
+    }
+    for (const auto& [begin, size] : set.ranges) {
+      std::vector<int> rows(static_cast<size_t>(size));
+      std::iota(rows.begin(), rows.end(), begin);
+      const int end = begin + size;
+      for (int i = std::max(0, begin - set.gap); i < begin; ++i) {
+        if (segment_of[i] == segment_of[begin]) rows.push_back(i);
+      }
+      for (int i = end; i < std::min(m, end + set.gap); ++i) {
+        if (segment_of[i] == segment_of[end - 1]) rows.push_back(i);
+      }
+      Matrix G_out, cross_out;
+      statistics(rows, &G_out, &cross_out);
+      set.G.push_back(G_total - G_out);
+      set.cross.push_back(cross_total - cross_out);
+      set.held_out_rows += size;
+    }
+    return set;
+  };
+  // Every row's blocks; and with the training data, the diagnosed log's own blocks, where an
+  // effect of scope "log" acts (its columns are zero on the training rows): it is confirmed on
+  // unseen parts of the log, with the training rows in every block's fit. Over every row, a
+  // log that is a small part of the rows is held out in one or two blocks whose fits keep
+  // little or nothing of it to fit the effect on.
+  std::vector<FoldSet> fold_sets;
+  fold_sets.push_back(make_folds(0, m));
+  const bool log_folds = log_begin > 0 && m_log >= 4 * options.folds;
+  if (log_folds) fold_sets.push_back(make_folds(log_begin, m_log));
+  auto folds_of_scope = [&](const std::string& scope) -> int {
+    return scope == "log" && log_folds ? 1 : 0;
+  };
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
@@ -699,35 +730,25 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   const double s2n = hyper.noise_variance();
   const Vector s2 = hyper.output_scales().cwiseAbs2();
 
-  const int num_folds = static_cast<int>(fold_ranges.size());
-  const int num_fits = num_folds + 1;  // fit 0: all data; fit f + 1: all but fold f and its gap
-  std::vector<Matrix> Gs(static_cast<size_t>(num_fits)), crosses(static_cast<size_t>(num_fits));
-  for (int fit = 0; fit < num_fits; ++fit) {
-    if (fit == 0) {
-      Gs[0] = G_total;
-      crosses[0] = cross_total;
-      continue;
-    }
-    Matrix G_gap, cross_gap;
-    statistics(gap_rows[fit - 1], &G_gap, &cross_gap);
-    Gs[fit] = G_total - fold_gram[fit - 1] - G_gap;
-    crosses[fit] = cross_total - fold_cross[fit - 1] - cross_gap;
-  }
-
-  // Fits of a base set of columns on all data and on each fold's training set.
+  // Fits of a base set of columns on all data and on each block's fit rows, per fold set.
   struct BaseFits {
     Index cols;
-    std::vector<BaseFit> fits;
+    BaseFit all;
+    std::vector<std::vector<BaseFit>> folds;  // [fold set][block]
     Matrix residual;  // Yg - F_B W on all data (m x N)
   };
   auto fit_base = [&](const Index& cols, BaseFits* b) {
     b->cols = cols;
-    b->fits.assign(static_cast<size_t>(num_fits), BaseFit{});
-    for (int fit = 0; fit < num_fits; ++fit) {
-      b->fits[fit] = FitBase(Gs[fit], crosses[fit], cols, lambda, s2n);
-      if (!b->fits[fit].ok) return false;
+    b->all = FitBase(G_total, cross_total, cols, lambda, s2n);
+    if (!b->all.ok) return false;
+    b->folds.assign(fold_sets.size(), {});
+    for (size_t k = 0; k < fold_sets.size(); ++k) {
+      for (size_t f = 0; f < fold_sets[k].ranges.size(); ++f) {
+        b->folds[k].push_back(FitBase(fold_sets[k].G[f], fold_sets[k].cross[f], cols, lambda, s2n));
+        if (!b->folds[k].back().ok) return false;
+      }
     }
-    b->residual = Yg - F(Eigen::all, cols) * b->fits[0].W;
+    b->residual = Yg - F(Eigen::all, cols) * b->all.W;
     return true;
   };
   // What adding the columns E to a base does to joint j.
@@ -738,13 +759,15 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     double sse_before = 0, sse_after = 0;  // held-out, over the folds
     int folds_improved = 0;
     double fold_ratio = 1;  // mean over the folds of the held-out RMS after / before
+    int fold_set = 0;       // the blocks they come from (fold_sets)
     Vector change;         // the change in the fitted torque of joint j on all data
     Vector residual_after;
     Vector we;
   };
-  auto add_columns = [&](const BaseFits& b, const Index& E, int j) {
+  // The held-out numbers come from the blocks of fold set `k` (0: every row, 1: the log's).
+  auto add_columns = [&](const BaseFits& b, const Index& E, int j, int k) {
     Addition a;
-    const Augmented aug = Augment(b.fits[0], Gs[0], crosses[0], b.cols, E, lambda, s2n);
+    const Augmented aug = Augment(b.all, G_total, cross_total, b.cols, E, lambda, s2n);
     if (!aug.ok) return a;
     a.we = aug.z.solve(Vector(aug.u.col(j)));
     a.statistic = aug.u.col(j).dot(a.we) / (s2n * s2[j]);
@@ -752,11 +775,13 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     double log_lambda_e = 0.0;
     for (int col : E) log_lambda_e += std::log(lambda[col]);
     a.occam = 0.5 * (log_det_z + log_lambda_e - static_cast<double>(E.size()) * std::log(s2n));
+    const FoldSet& set = fold_sets[static_cast<size_t>(k)];
+    const int num_folds = static_cast<int>(set.ranges.size());
     double ratio_sum = 0.0;
     for (int f = 0; f < num_folds; ++f) {
-      const auto [begin, count] = fold_ranges[f];
-      const BaseFit& base = b.fits[f + 1];
-      const Augmented af = Augment(base, Gs[f + 1], crosses[f + 1], b.cols, E, lambda, s2n);
+      const auto [begin, count] = set.ranges[f];
+      const BaseFit& base = b.folds[static_cast<size_t>(k)][f];
+      const Augmented af = Augment(base, set.G[f], set.cross[f], b.cols, E, lambda, s2n);
       if (!af.ok) return Addition{};
       const Vector we = af.z.solve(Vector(af.u.col(j)));
       const Vector delta = base.llt.matrixU().solve(Vector(af.V * we));
@@ -770,8 +795,9 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       if (sa < sb) ++a.folds_improved;
       ratio_sum += sb > 0 ? std::sqrt(sa / sb) : 1.0;
     }
+    a.fold_set = k;
     a.fold_ratio = ratio_sum / std::max(1, num_folds);
-    const Vector delta = b.fits[0].llt.matrixU().solve(Vector(aug.V * a.we));
+    const Vector delta = b.all.llt.matrixU().solve(Vector(aug.V * a.we));
     a.change = F(Eigen::all, E) * a.we - F(Eigen::all, b.cols) * delta;
     a.residual_after = b.residual.col(j) - a.change;
     a.ok = std::isfinite(a.statistic) && std::isfinite(a.sse_after) && a.change.allFinite();
@@ -784,7 +810,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   // Every candidate on every joint is a test (a model diagnosed one joint at a time passes
   // the other joints' count in test_multiplier).
   const int num_tests = std::max(1, static_cast<int>(candidates.size()) * test_multiplier);
-  const char* confirmation = by_trajectory ? "trajectories" : "blocks";
   // Candidates that passed every bar when first scored, with their numbers then (for the
   // joint choice of friction-like effects below).
   std::map<int, Suggestion> eligible;
@@ -815,7 +840,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   auto calibrate = [&](const BaseFits& b, const Index& E, const Vector& residual_after) {
     double inflation = 1.0;
     if (!options.autocorrelation_correction) return inflation;
-    const Matrix P = b.fits[0].llt.solve(Matrix(Gs[0](b.cols, E)));
+    const Matrix P = b.all.llt.solve(Matrix(G_total(b.cols, E)));
     const Matrix E_perp = F(Eigen::all, E) - F(Eigen::all, b.cols) * P;
     for (int k = 0; k < E_perp.cols(); ++k) {
       inflation = std::max(inflation, BartlettInflation(residual_after, E_perp.col(k), starts));
@@ -827,8 +852,12 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   // themselves with `rows`: a suggestion's, not a refused candidate's).
   auto record_outcome = [&](const BaseFits& b, const Addition& a, int j, Suggestion* s,
                             bool rows) {
-    s->rms_before = std::sqrt(a.sse_before / m);
-    s->rms_after = std::sqrt(a.sse_after / m);
+    const FoldSet& set = fold_sets[static_cast<size_t>(a.fold_set)];
+    s->confirmation = set.by_trajectory ? "trajectories" : "blocks";
+    s->confirmation_folds = static_cast<int>(set.ranges.size());
+    s->confirmation_gap = set.gap;
+    s->rms_before = std::sqrt(a.sse_before / set.held_out_rows);
+    s->rms_after = std::sqrt(a.sse_after / set.held_out_rows);
     s->residual_rms_before = std::sqrt(b.residual.col(j).tail(m_log).squaredNorm() / m_log);
     s->residual_rms_after = std::sqrt(a.residual_after.tail(m_log).squaredNorm() / m_log);
     s->folds_improved = a.folds_improved;
@@ -843,7 +872,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   auto evaluate = [&](const BaseFits& b, size_t ci, int round, Suggestion* s, Refusal* refusal) {
     const Candidate& c = candidates[ci];
     const int j = c.joint - 1;
-    const Addition a = add_columns(b, c.cols, j);
+    const Addition a = add_columns(b, c.cols, j, folds_of_scope(c.scope));
     if (!a.ok) return false;
     const double gain_white = 0.5 * a.statistic - a.occam;
     // The effect's size on the diagnosed log (the training rows, when given, may not have it).
@@ -858,9 +887,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     s->effect_rms = effect_rms;
     s->effect_to_noise = noise > 0 ? effect_rms / noise : HUGE_VAL;
     record_outcome(b, a, j, s, false);
-    s->confirmation = confirmation;
-    s->confirmation_folds = num_folds;
-    s->confirmation_gap = gap;
     s->spec = c.spec;
     s->scope = c.scope;
     s->params = MakeEffect(c.effect, c.params)->parameters();
@@ -872,9 +898,13 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     };
     // A large held-out fall stands in for the effect-size bars; in all folds but at most one,
     // and not against the evidence on the log, for the evidence bars too (the held-out route).
+    // Not on the log's own blocks: there any column of the log alone can stand for how the
+    // whole log differs from the training rows (a bias, a load it carries) and predict its
+    // unseen blocks for that reason, so an effect of the log alone needs the evidence.
     const bool large_held_out = a.fold_ratio <= 1.0 - options.held_out_fall_alone;
-    const bool held_out_route = options.held_out_may_replace_evidence && gain_white >= 0.0 &&
-                                large_held_out && a.folds_improved >= num_folds - 1;
+    const bool held_out_route = options.held_out_may_replace_evidence && a.fold_set == 0 &&
+                                gain_white >= 0.0 && large_held_out &&
+                                a.folds_improved >= s->confirmation_folds - 1;
     // Cheap bars first (the calibration below costs O(m K) per column).
     if (!held_out_route && !(gain_white > options.min_log_evidence_gain)) {
       return refuse("evidence",
@@ -1030,12 +1060,34 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       }
       return cols;
     };
-    const Addition greedy_add = add_columns(rest, columns_of(greedy_set), joint - 1);
+    // A set is confirmed on the log's blocks when all of it acts on the log alone.
+    auto folds_of = [&](const std::vector<int>& set) {
+      for (int ci : set) {
+        if (folds_of_scope(candidates[static_cast<size_t>(ci)].scope) == 0) return 0;
+      }
+      return folds_of_scope("log");
+    };
+    // The greedy choice's held-out numbers on each fold set: a set is compared with it on the
+    // blocks the set is confirmed on.
+    std::vector<Addition> greedy_adds;
+    for (size_t k = 0; k < fold_sets.size(); ++k) {
+      greedy_adds.push_back(
+          add_columns(rest, columns_of(greedy_set), joint - 1, static_cast<int>(k)));
+    }
+    const Addition& greedy_add = greedy_adds[static_cast<size_t>(folds_of(greedy_set))];
     if (!greedy_add.ok) continue;
-    if (pool.size() > 8) {  // the best 8 by score: at most 92 sets below
-      std::sort(pool.begin(), pool.end(),
-                [&](int a, int b) { return eligible.at(a).score > eligible.at(b).score; });
-      pool.resize(8);
+    // The two best parameter sets (either scope) of each effect by score: every effect that
+    // passed stays in the pool however many parameter sets another one has (at most 10
+    // candidates: 175 sets below).
+    std::stable_sort(pool.begin(), pool.end(),
+                     [&](int a, int b) { return eligible.at(a).score > eligible.at(b).score; });
+    {
+      std::map<std::string, int> kept;
+      std::vector<int> best_of_each;
+      for (int ci : pool) {
+        if (kept[candidates[static_cast<size_t>(ci)].effect]++ < 2) best_of_each.push_back(ci);
+      }
+      pool = std::move(best_of_each);
     }
     const int n = static_cast<int>(pool.size());
     // A set's evidence, its statistic deflated by its own Bartlett factor.
@@ -1059,8 +1111,8 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
         }
       }
       if (effects.size() != set.size()) continue;
-      const Addition a = add_columns(rest, columns_of(set), joint - 1);
-      if (!a.ok || a.fold_ratio > greedy_add.fold_ratio) continue;
+      const Addition a = add_columns(rest, columns_of(set), joint - 1, folds_of(set));
+      if (!a.ok || a.fold_ratio > greedy_adds[static_cast<size_t>(a.fold_set)].fold_ratio) continue;
       const double gain = set_gain(set, a);
       if (gain > best_gain) {
         best_set = set;
