@@ -22,7 +22,9 @@
 ///   min_residual_fall and change its fitted torque by min_effect_to_noise times the noise;
 /// - confirmation on unseen data: the held-out RMS of the joint by leave-one-trajectory-out
 ///   when the log has enough trajectories, else by contiguous blocks with a gap on each side
-///   (rows too correlated with the block to count as unseen are left out of its fit).
+///   (rows too correlated with the block to count as unseen are left out of its fit); an
+///   effect tried on the diagnosed log alone (Suggestion::scope "log") on the log's own
+///   trajectories or blocks, with the training rows in every fit.
 /// A candidate is suggested only when all of them say so. Suggestions are chosen greedily
 /// (after the best is added, the others are scored again); then, per joint, the friction-like
 /// effects that passed (viscous, Coulomb, Stribeck, drift, offset) are also chosen jointly,
@@ -84,7 +86,10 @@ struct DiagnosisOptions {
   /// one, and does not lower the evidence on the log (gain >= 0) passes the evidence bars too
   /// (evidence, calibrated evidence, z, significance; Suggestion::passed_by "held_out"): a
   /// model as flexible as lagk, refitted on the training rows and the log, absorbs a viscous
-  /// friction in sample (+0.7 nats on the Panda) that lowers its held-out error by 28%.
+  /// friction in sample (+0.7 nats on the Panda) that lowers its held-out error by 28%. Not
+  /// for an effect of the log alone (Suggestion::scope "log"), confirmed on the log's blocks,
+  /// which any column of the log alone can predict for how the whole log differs from the
+  /// training data.
   bool held_out_may_replace_evidence = true;
   /// Minimum size of the effect against its posterior standard deviation (the square root of
   /// the calibrated chi-square statistic).
@@ -160,8 +165,10 @@ struct Suggestion {
   std::string effect;   ///< a registered effect name ("coulomb")
   int joint = 0;        ///< 1-based
   double score = 0;     ///< gain in log evidence of this joint's torque, nats
-  double rms_before = 0;  ///< held-out RMS of the joint without the effect (blocked CV)
-  double rms_after = 0;   ///< ... and with it
+  /// Held-out RMS of the joint without the effect and with it, pooled over the held-out rows
+  /// (blocked CV): every row's blocks, or for scope "log" the diagnosed log's.
+  double rms_before = 0;
+  double rms_after = 0;
   /// Residual RMS of the joint on the diagnosed log (every row of it), the model refitted
   /// without the effect and with it: what the effect would leave on this log. Compare it with the joint's
   /// noise_std_estimate. (The held-out RMS above can be much larger on a log whose
@@ -186,7 +193,9 @@ struct Suggestion {
   double z = 0;
   /// How rms_before / rms_after were confirmed on unseen data: "trajectories" (leave one
   /// trajectory out) or "blocks" (contiguous blocks with confirmation_gap rows left out on each
-  /// side); folds, the gap, and in how many folds the effect lowered the held-out error.
+  /// side), of every row or, for scope "log", of the diagnosed log's rows (the training rows
+  /// then in every fit); folds, the gap, and in how many folds the effect lowered the held-out
+  /// error.
   std::string confirmation;
   int confirmation_folds = 0;
   int confirmation_gap = 0;
