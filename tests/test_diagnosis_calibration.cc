@@ -468,6 +468,9 @@ TEST(Calibration, AnEffectOnlyTheLogHasIsConfirmedOnTheLogsOwnBlocks) {
   const double log_rms = std::sqrt((test.Y.col(1).array() - test.Y.col(1).mean()).square().mean());
   EXPECT_LT(s.rms_before, log_rms);
   EXPECT_LT(s.rms_after, s.rms_before);
+  // The report says where it was confirmed.
+  const std::string text = DiagnosisReport(d, model.spec(), options);
+  EXPECT_NE(text.find("5 contiguous blocks of this log"), std::string::npos) << text;
 
   // The same step in both logs: named on every row, confirmed on blocks of every row.
   sim::Dataset train_both = step.train, test_both = step.test;

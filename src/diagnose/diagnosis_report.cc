@@ -104,10 +104,13 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
     return text.find_first_of("; ") == std::string::npos ? text : "'" + text + "'";
   };
   for (const Suggestion& s : d.suggestions) {
+    // An effect of this log alone is confirmed on the log's own trajectories or blocks.
+    const char* where = s.scope == "log" ? " of this log" : "";
     const std::string unseen =
         s.confirmation == "trajectories"
-            ? Format("leave one trajectory out, %d folds", s.confirmation_folds)
-            : Format("%d contiguous blocks, gap %d rows", s.confirmation_folds, s.confirmation_gap);
+            ? Format("leave one trajectory%s out, %d folds", where, s.confirmation_folds)
+            : Format("%d contiguous blocks%s, gap %d rows", s.confirmation_folds, where,
+                     s.confirmation_gap);
     os << Format(
         "joint %d: missing %s%s (evidence %+.0f nats, %.0f without the autocorrelation "
         "correction; adjusted p %s; %.1f times the noise%s): residual RMS %.3g -> %.3g, "
