@@ -1062,10 +1062,10 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     };
     // A set is confirmed on the log's blocks when all of it acts on the log alone.
     auto folds_of = [&](const std::vector<int>& set) {
-      for (int ci : set) {
-        if (folds_of_scope(candidates[static_cast<size_t>(ci)].scope) == 0) return 0;
-      }
-      return folds_of_scope("log");
+      const bool log_alone = std::all_of(set.begin(), set.end(), [&](int ci) {
+        return candidates[static_cast<size_t>(ci)].scope == "log";
+      });
+      return folds_of_scope(log_alone ? "log" : "all");
     };
     // The greedy choice's held-out numbers on each fold set: a set is compared with it on the
     // blocks the set is confirmed on.
