@@ -264,6 +264,8 @@ struct Fit {
 std::string g_models_dir;
 // --no-held-out-route: DiagnosisOptions::held_out_may_replace_evidence off.
 bool g_held_out_route = true;
+// --autocorrelation: DiagnosisOptions::autocorrelation.
+DiagnosisOptions::Autocorrelation g_autocorrelation = DiagnosisOptions().autocorrelation;
 // --refit-from: "model" (a lagk refit with effects added searches from the model it adds them
 // to, at its sigma, as RunDiagnosisLoop does) or "scratch" (the whole sigma grid, as a first
 // fit).
@@ -373,6 +375,7 @@ Diagnosis RunDiagnosis(const RobotModel& model, const Matrix& X, const Matrix& Y
   try {
     DiagnosisOptions options;
     options.held_out_may_replace_evidence = g_held_out_route;
+    options.autocorrelation = g_autocorrelation;
     if (train_X != nullptr) {
       options.training_inputs = ModelInputs(model, *train_X, *train_t);
       options.training_targets = *train_Y;
@@ -1246,6 +1249,12 @@ int main(int argc, char** argv) {
   app.add_flag("--held-out-route,!--no-held-out-route", structgp::g_held_out_route,
                "an effect that lowers the held-out error by 25% in all folds but one passes "
                "without the evidence bars (DiagnosisOptions::held_out_may_replace_evidence)");
+  std::string autocorrelation = structgp::ToString(structgp::g_autocorrelation);
+  AddFlag(&app, "--autocorrelation", &autocorrelation,
+          "how the evidence is corrected for autocorrelated residuals "
+          "(DiagnosisOptions::autocorrelation)")
+      ->check(CLI::IsMember({"bartlett", "prewhitening", "none"}))
+      ->capture_default_str();
   app.add_flag("--with-training,!--log-only", f.with_training,
                "give the diagnosis the model's training data too (the default; --log-only: the "
                "diagnosed log alone)");
@@ -1256,6 +1265,7 @@ int main(int argc, char** argv) {
                "exit 3 unless every fit and diagnosis ran and every number is finite");
   return structgp::RunProgram(&app, argc, argv, [&] {
     structgp::g_refit_from_model = refit_from == "model";
+    structgp::FromString(autocorrelation, &structgp::g_autocorrelation);
     return structgp::Run(f, argc, argv);
   });
 }

@@ -642,7 +642,8 @@ void BindDiagnosis(py::module_& m) {
       "diagnose",
       [](const Model& model, const py::object& X, const py::object& Y, const py::object& t,
          const py::object& report, int folds, double min_evidence,
-         const std::vector<std::string>& candidates, double significance, const py::object& train) {
+         const std::vector<std::string>& candidates, double significance, const py::object& train,
+         const std::string& autocorrelation) {
         const std::shared_ptr<const RobotModel> held = model.shared("diagnose");
         const RobotModel& fitted = *held;
         RobotData data;
@@ -657,6 +658,10 @@ void BindDiagnosis(py::module_& m) {
         result.options.min_log_evidence_gain = min_evidence;
         result.options.candidates = candidates;
         result.options.significance = significance;
+        if (!FromString(autocorrelation, &result.options.autocorrelation)) {
+          throw py::value_error("autocorrelation: expected 'bartlett', 'prewhitening' or "
+                                "'none', got '" + autocorrelation + "'");
+        }
         if (!train.is_none()) {
           const RobotData train_data = TrainingData(train);
           result.options.training_inputs = ModelInputs(fitted, train_data.X, train_data.t);
@@ -689,6 +694,7 @@ void BindDiagnosis(py::module_& m) {
       py::arg("min_evidence") = DiagnosisOptions().min_log_evidence_gain,
       py::arg("candidates") = std::vector<std::string>(),
       py::arg("significance") = DiagnosisOptions().significance, py::arg("train") = py::none(),
+      py::arg("autocorrelation") = std::string(ToString(DiagnosisOptions().autocorrelation)),
       "Diagnoses a fitted model on X, Y (and t, rows in time order), as `structgp diagnose`: "
       "per joint the residual and where it concentrates, the verdict (a missing effect, or "
       "motions the training data did not cover), and the effects the model misses, each scored "
@@ -696,6 +702,7 @@ void BindDiagnosis(py::module_& m) {
       "the error on unseen trajectories or blocks. train=(X, Y[, t]), the model's training data: "
       "candidates are scored on it and the data together, and the findings say how far the data "
       "are from the training states. report=PATH also writes the HTML report. "
+      "autocorrelation: 'bartlett', 'prewhitening' or 'none' (DiagnosisOptions). "
       "Raises ValueError for bad input, structgp.Error when the diagnosis fails.");
 
   m.def(

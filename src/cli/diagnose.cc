@@ -58,6 +58,13 @@ class DiagnoseCommand : public Command {
             },
             "in (0, 0.5]"))
         ->capture_default_str();
+    cmd->add_option("--autocorrelation", autocorrelation_,
+                    "How the evidence is corrected for autocorrelated residuals: bartlett "
+                    "(Bartlett's factor of the two autocorrelations), prewhitening (residual and "
+                    "candidate filtered by an AR model of the residual), or none (every row an "
+                    "independent sample)")
+        ->check(CLI::IsMember({"bartlett", "prewhitening", "none"}))
+        ->capture_default_str();
     cmd->add_option("--train", train_,
                     "The model's training data (CSV as --data): candidates are then scored on "
                     "the training data and --data together (a sharper test: a model refitted on "
@@ -102,6 +109,7 @@ class DiagnoseCommand : public Command {
                        "model on the training data and writes it to --out");
     }
     if (loop) CheckOutputPath("--out", out_);
+    FromString(autocorrelation_, &options_.autocorrelation);  // checked by the flag
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     const RobotModel model = LoadModel(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
@@ -207,6 +215,7 @@ class DiagnoseCommand : public Command {
   int rounds_ = 1;
   std::string out_;
   std::string model_, data_, json_, report_, train_;
+  std::string autocorrelation_ = ToString(DiagnosisOptions().autocorrelation);
   LoadOptions load_;
   DiagnosisOptions options_;
 };

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 namespace structgp {
 namespace {
 
@@ -44,6 +46,105 @@ double BartlettInflation(const ConstVectorRef& r, const ConstVectorRef& e,
   if (lags == 0) return 1.0;
   const Vector rho_e = Autocorrelation(e, segment_starts, lags);
   const double c = 1.0 + 2.0 * rho_r.segment(1, lags).dot(rho_e.segment(1, lags));
+  return std::isfinite(c) ? std::max(1.0, c) : 1.0;
+}
+
+Autoregression FitAutoregression(const ConstVectorRef& x, const std::vector<int>& segment_starts,
+                                 int max_order) {
+  Autoregression ar;
+  const Eigen::Index m = x.size();
+  const int P = static_cast<int>(std::max<Eigen::Index>(0, std::min<Eigen::Index>(max_order, m / 10)));
+  if (P == 0) return ar;
+  const Vector rho = Autocorrelation(x, segment_starts, P);
+  // Levinson-Durbin: the order-p coefficients from the order-(p - 1) ones; v is the
+  // innovation variance over Var(x). The sample autocorrelation (every lag over the same c0)
+  // is positive definite, so |kappa| < 1 while the recursion is exact.
+  Vector previous, phi;
+  double v = 1.0, best_aic = 0.0;
+  for (int p = 1; p <= P; ++p) {
+    double acc = rho[p];
+    for (int k = 1; k < p; ++k) acc -= previous[k - 1] * rho[p - k];
+    const double kappa = acc / v;
+    if (!std::isfinite(kappa) || std::abs(kappa) >= 1.0) break;
+    phi.resize(p);
+    for (int k = 1; k < p; ++k) phi[k - 1] = previous[k - 1] - kappa * previous[p - k - 1];
+    phi[p - 1] = kappa;
+    v *= 1.0 - kappa * kappa;
+    if (!(v > 0.0)) break;
+    const double aic = static_cast<double>(m) * std::log(v) + 2.0 * p;
+    if (aic < best_aic) {
+      best_aic = aic;
+      ar.phi = phi;
+      ar.innovation_variance_ratio = v;
+    }
+    previous = phi;
+  }
+  return ar;
+}
+
+Matrix Prewhiten(const ConstMatrixRef& x, const Vector& phi,
+                 const std::vector<int>& segment_starts) {
+  const int m = static_cast<int>(x.rows());
+  const int p = static_cast<int>(phi.size());
+  const std::vector<int> starts = segment_starts.empty() ? std::vector<int>{0} : segment_starts;
+  Eigen::Index rows = 0;
+  for (size_t s = 0; s < starts.size(); ++s) {
+    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : m;
+    rows += std::max(0, e - b - p);
+  }
+  Matrix out(rows, x.cols());
+  Eigen::Index o = 0;
+  for (size_t s = 0; s < starts.size(); ++s) {
+    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : m;
+    for (int t = b + p; t < e; ++t, ++o) {
+      out.row(o) = x.row(t);
+      for (int k = 1; k <= p; ++k) out.row(o) -= phi[k - 1] * x.row(t - k);
+    }
+  }
+  return out;
+}
+
+namespace {
+
+// r^T E (E^T E)^+ E^T r: the part of r's square that the columns of E explain.
+double ProjectedSquare(const ConstMatrixRef& E, const ConstVectorRef& r) {
+  const Matrix G = E.transpose() * E;
+  const Vector b = E.transpose() * r;
+  const Eigen::SelfAdjointEigenSolver<Matrix> es(G);
+  if (es.info() != Eigen::Success) return 0.0;
+  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
+  double sum = 0.0;
+  for (Eigen::Index i = 0; i < G.rows(); ++i) {
+    const double lambda = es.eigenvalues()[i];
+    if (lambda > 1e-10 * top) {
+      const double c = es.eigenvectors().col(i).dot(b);
+      sum += c * c / lambda;
+    }
+  }
+  return sum;
+}
+
+}  // namespace
+
+double PrewhiteningInflation(const ConstVectorRef& r_before, const ConstVectorRef& r_after,
+                             const ConstMatrixRef& E, const std::vector<int>& segment_starts,
+                             int max_order) {
+  const Eigen::Index m = r_before.size();
+  if (m < 4 || r_after.size() != m || E.rows() != m || E.cols() == 0) return 1.0;
+  const Autoregression ar = FitAutoregression(r_after, segment_starts, max_order);
+  if (ar.phi.size() == 0) return 1.0;
+  const Vector centred = r_after.array() - r_after.mean();
+  const double variance = centred.squaredNorm() / static_cast<double>(m);
+  const double white = ProjectedSquare(E, r_before) / variance;
+  const Matrix Ew = Prewhiten(E, ar.phi, segment_starts);
+  const Matrix rw = Prewhiten(r_before, ar.phi, segment_starts);
+  const Matrix uw = Prewhiten(centred, ar.phi, segment_starts);
+  if (uw.rows() < 2) return 1.0;
+  const double innovation = uw.squaredNorm() / static_cast<double>(uw.rows());
+  const double whitened = ProjectedSquare(Ew, rw.col(0)) / innovation;
+  if (!(white > 0.0) || !std::isfinite(white)) return 1.0;
+  // An effect the filter takes away entirely: no evidence left (a finite factor, for JSON).
+  const double c = white / std::max(whitened, 1e-12 * white);
   return std::isfinite(c) ? std::max(1.0, c) : 1.0;
 }
 

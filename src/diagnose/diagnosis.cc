@@ -260,6 +260,27 @@ class EvidenceScorer {
 
 }  // namespace
 
+const char* ToString(DiagnosisOptions::Autocorrelation correction) {
+  switch (correction) {
+    case DiagnosisOptions::Autocorrelation::kNone: return "none";
+    case DiagnosisOptions::Autocorrelation::kBartlett: return "bartlett";
+    case DiagnosisOptions::Autocorrelation::kPrewhitening: return "prewhitening";
+  }
+  return "unknown";
+}
+
+bool FromString(const std::string& text, DiagnosisOptions::Autocorrelation* correction) {
+  for (const auto c : {DiagnosisOptions::Autocorrelation::kNone,
+                       DiagnosisOptions::Autocorrelation::kBartlett,
+                       DiagnosisOptions::Autocorrelation::kPrewhitening}) {
+    if (text == ToString(c)) {
+      *correction = c;
+      return true;
+    }
+  }
+  return false;
+}
+
 const char* ToString(DiagnosisStatus status) {
   switch (status) {
     case DiagnosisStatus::kOk:
@@ -835,15 +856,20 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
     return p;
   };
-  // Bartlett's inflation of the test of columns E against the base b, with the residual the
-  // columns leave: the largest over the columns as the test sees them (what b does not explain).
-  auto calibrate = [&](const BaseFits& b, const Index& E, const Vector& residual_after) {
+  // The inflation of the test of columns E against the base b (a: what adding them did), on
+  // the columns as the test sees them (what b does not explain), with the residual the columns
+  // leave: Bartlett's, the largest over the columns; or by prewhitening, all columns at once.
+  auto calibrate = [&](const BaseFits& b, const Index& E, const Addition& a) {
+    using Correction = DiagnosisOptions::Autocorrelation;
     double inflation = 1.0;
-    if (!options.autocorrelation_correction) return inflation;
+    if (options.autocorrelation == Correction::kNone) return inflation;
     const Matrix P = b.all.llt.solve(Matrix(G_total(b.cols, E)));
     const Matrix E_perp = F(Eigen::all, E) - F(Eigen::all, b.cols) * P;
+    if (options.autocorrelation == Correction::kPrewhitening) {
+      return PrewhiteningInflation(a.residual_after + a.change, a.residual_after, E_perp, starts);
+    }
     for (int k = 0; k < E_perp.cols(); ++k) {
-      inflation = std::max(inflation, BartlettInflation(residual_after, E_perp.col(k), starts));
+      inflation = std::max(inflation, BartlettInflation(a.residual_after, E_perp.col(k), starts));
     }
     return inflation;
   };
@@ -937,7 +963,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                       false);
       }
     }
-    const double inflation = calibrate(b, c.cols, a.residual_after);
+    const double inflation = calibrate(b, c.cols, a);
     const double statistic = a.statistic / inflation;
     const double dof = static_cast<double>(c.cols.size());
     const double p = boost::math::cdf(boost::math::complement(
@@ -1090,9 +1116,9 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       pool = std::move(best_of_each);
     }
     const int n = static_cast<int>(pool.size());
-    // A set's evidence, its statistic deflated by its own Bartlett factor.
+    // A set's evidence, its statistic deflated by its own inflation factor.
     auto set_gain = [&](const std::vector<int>& set, const Addition& a) {
-      return 0.5 * a.statistic / calibrate(rest, columns_of(set), a.residual_after) - a.occam;
+      return 0.5 * a.statistic / calibrate(rest, columns_of(set), a) - a.occam;
     };
     // A set replaces the greedy choice when its evidence is higher by min_log_evidence_gain
     // and its held-out error is no worse; the set of highest evidence among those.

@@ -68,10 +68,16 @@ struct DiagnosisOptions {
   double significance = 0.01;
   enum class Multiplicity { kHolm, kBenjaminiHochberg, kNone };
   Multiplicity multiplicity = Multiplicity::kHolm;
-  /// Correct the evidence for autocorrelated residuals (Bartlett). Off: every row counts as an
+  /// How the evidence is corrected for autocorrelated residuals. kBartlett: the statistic is
+  /// divided by Bartlett's factor (diagnose/autocorrelation.h, BartlettInflation), which sees
+  /// only the two autocorrelations. kPrewhitening: by the factor that an AR model of the
+  /// residual gives (PrewhiteningInflation): residual and candidate filtered by it, which keeps
+  /// the power of a candidate whose shape the noise does not share (a Coulomb step against a
+  /// slow wander); never above the white-noise statistic. kNone: every row counts as an
   /// independent sample, which is overconfident on logs sampled faster than their residual
   /// decorrelates.
-  bool autocorrelation_correction = true;
+  enum class Autocorrelation { kNone, kBartlett, kPrewhitening };
+  Autocorrelation autocorrelation = Autocorrelation::kBartlett;
   /// Minimum relative fall of the joint's residual RMS on the log (model refitted there without
   /// and with the effect).
   double min_residual_fall = 0.03;
@@ -266,6 +272,11 @@ enum class Verdict {
 
 /// "explained", "coverage", "missing_effect", "unexplained".
 const char* ToString(Verdict verdict);
+
+/// "none", "bartlett", "prewhitening".
+const char* ToString(DiagnosisOptions::Autocorrelation correction);
+/// The inverse of ToString; false (nothing written) for any other text.
+bool FromString(const std::string& text, DiagnosisOptions::Autocorrelation* correction);
 
 /// Where the log leaves the training data (FINDINGS.json "coverage").
 struct CoverageFinding {
