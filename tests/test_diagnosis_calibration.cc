@@ -289,7 +289,10 @@ TEST(Calibration, RefusedCandidatesNameTheBarThatStoppedThem) {
     EXPECT_GT(c.score_uncorrected, options.min_log_evidence_gain);
     if (c.effect == "drift") drift_passed_white = true;
     if (r.bar == "held_out") {
-      EXPECT_GE(c.fold_rms_ratio, 1.0 - options.min_relative_rms_gain);
+      // The mean of the folds' ratios, or the pooled held-out RMS, does not fall enough.
+      EXPECT_TRUE(c.fold_rms_ratio >= 1.0 - options.min_relative_rms_gain ||
+                  c.rms_after >= c.rms_before)
+          << c.fold_rms_ratio << " " << c.rms_before << " -> " << c.rms_after;
       EXPECT_FALSE(r.calibrated);
       continue;
     }
@@ -577,6 +580,42 @@ TEST(Calibration, AnEffectOnlyTheLogHasIsConfirmedOnTheLogsOwnBlocks) {
   EXPECT_EQ(both.suggestions.front().joint, 2) << both.suggestions.front().spec;
   EXPECT_EQ(both.suggestions.front().scope, "all") << both.suggestions.front().spec;
   EXPECT_EQ(both.suggestions.front().folds_improved, options.folds);
+}
+
+// A friction step of the log alone that turns over in its last fifth (+0.05 N m, then -0.08):
+// fitted without the last block it makes that block worse, and over all held-out rows the
+// error rises while the mean of the blocks' ratios passes its bar. The pooled bar refuses it
+// there (without it, this candidate went on to the residual-fall bar, which refused it too:
+// pol refitted on both logs absorbs most of the step in sample; on the UR10 log the pooled bar
+// is what refuses, docs/diagnosis.md). No suggestion may raise the pooled held-out error.
+TEST(Calibration, AnEffectThatRaisesThePooledHeldOutErrorIsRefused) {
+  auto step = Clean(HiddenEffect::kCoulomb, 2, 1.0, 10.0);  // 1.0 sign(qd2)
+  auto only_log = Clean(HiddenEffect::kNone, 2, 0.0, 10.0);
+  const Eigen::Index m_log = only_log.test.X.rows();
+  for (Eigen::Index i = 0; i < m_log; ++i) {
+    only_log.test.Y(i, 1) += (i < 4 * m_log / 5 ? 0.05 : -0.08) * step.hidden_test(i, 1);
+  }
+  sim::Dataset train = only_log.train, test = only_log.test;
+  AddWhiteNoise(0.01, 15, &train);
+  AddWhiteNoise(0.01, 16, &test);
+  const RobotModel model = Fit(ParseModelSpec("pol"), train);
+  const DiagnosisOptions options = WithTraining(train);
+  const Diagnosis d = Diagnose(model, test.X, test.Y, test.t, options);
+  std::printf("a step that turns over in the last block:\n%s", ToJson(d).c_str());
+  for (const Suggestion& s : d.suggestions) {
+    EXPECT_LT(s.rms_after, s.rms_before) << s.spec;
+    EXPECT_NE(s.joint, 2) << s.spec;
+  }
+  bool refused_pooled = false;
+  for (const Refusal& r : d.refused) {
+    if (r.candidate.joint == 2 && r.bar == "held_out" &&
+        r.reason.find("pooled") != std::string::npos) {
+      refused_pooled = true;
+      EXPECT_LT(r.candidate.fold_rms_ratio, 1.0 - options.min_relative_rms_gain);
+      EXPECT_GE(r.candidate.rms_after, r.candidate.rms_before);
+    }
+  }
+  EXPECT_TRUE(refused_pooled);
 }
 
 // Coulomb + viscous + Stribeck on one joint: the suggestions on that joint, added to the

@@ -34,19 +34,37 @@ Vector Autocorrelation(const ConstVectorRef& x, const std::vector<int>& segment_
   return rho;
 }
 
-double BartlettInflation(const ConstVectorRef& r, const ConstVectorRef& e,
-                         const std::vector<int>& segment_starts) {
+namespace {
+
+// Lags 1..lags at which r's autocorrelation is distinguishable from zero (|rho| >= 2 / sqrt(m)),
+// up to MaxLag: the first lag below that band ends them.
+int CorrelatedLags(const ConstVectorRef& r, const std::vector<int>& segment_starts) {
   const Eigen::Index m = r.size();
-  if (m < 4 || e.size() != m) return 1.0;
   const int K = MaxLag(m);
   const Vector rho_r = Autocorrelation(r, segment_starts, K);
   const double band = 2.0 / std::sqrt(static_cast<double>(m));
   int lags = 0;
   while (lags < K && std::abs(rho_r[lags + 1]) >= band) ++lags;
-  if (lags == 0) return 1.0;
+  return lags;
+}
+
+// 1 + 2 sum_{k=1..lags} rho_r(k) rho_e(k), at least 1.
+double BartlettSum(const ConstVectorRef& r, const ConstVectorRef& e,
+                   const std::vector<int>& segment_starts, int lags) {
+  if (lags <= 0) return 1.0;
+  const Vector rho_r = Autocorrelation(r, segment_starts, lags);
   const Vector rho_e = Autocorrelation(e, segment_starts, lags);
   const double c = 1.0 + 2.0 * rho_r.segment(1, lags).dot(rho_e.segment(1, lags));
   return std::isfinite(c) ? std::max(1.0, c) : 1.0;
+}
+
+}  // namespace
+
+double BartlettInflation(const ConstVectorRef& r, const ConstVectorRef& e,
+                         const std::vector<int>& segment_starts) {
+  const Eigen::Index m = r.size();
+  if (m < 4 || e.size() != m) return 1.0;
+  return BartlettSum(r, e, segment_starts, CorrelatedLags(r, segment_starts));
 }
 
 Autoregression FitAutoregression(const ConstVectorRef& x, const std::vector<int>& segment_starts,
@@ -143,8 +161,32 @@ double PrewhiteningInflation(const ConstVectorRef& r_before, const ConstVectorRe
   const double innovation = uw.squaredNorm() / static_cast<double>(uw.rows());
   const double whitened = ProjectedSquare(Ew, rw.col(0)) / innovation;
   if (!(white > 0.0) || !std::isfinite(white)) return 1.0;
+  // What the AR model leaves correlated (a wander slower than its order reaches): Bartlett's
+  // factor of the filtered residual against each filtered column, on the filtered segments.
+  const int p = static_cast<int>(ar.phi.size());
+  const std::vector<int> starts =
+      segment_starts.empty() ? std::vector<int>{0} : segment_starts;
+  std::vector<int> filtered_starts;
+  int row = 0;
+  for (size_t s = 0; s < starts.size(); ++s) {
+    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : static_cast<int>(m);
+    if (e - b > p) {
+      filtered_starts.push_back(row);
+      row += e - b - p;
+    }
+  }
+  // Over the lags at which the residual itself is correlated: after a good filter each
+  // filtered autocorrelation is small, but a wander the filter misses leaves small ones at
+  // many lags, which together count (each alone would fall inside the white-noise band).
+  const int lags = std::min(CorrelatedLags(r_after, segment_starts),
+                            MaxLag(static_cast<Eigen::Index>(uw.rows())));
+  double residual_correlation = 1.0;
+  for (Eigen::Index k = 0; k < Ew.cols(); ++k) {
+    residual_correlation = std::max(
+        residual_correlation, BartlettSum(uw.col(0), Ew.col(k), filtered_starts, lags));
+  }
   // An effect the filter takes away entirely: no evidence left (a finite factor, for JSON).
-  const double c = white / std::max(whitened, 1e-12 * white);
+  const double c = white / std::max(whitened, 1e-12 * white) * residual_correlation;
   return std::isfinite(c) ? std::max(1.0, c) : 1.0;
 }
 

@@ -946,6 +946,14 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                                      1.0 - options.min_relative_rms_gain),
                     false);
     }
+    // And over all held-out rows together: an effect that helps most blocks a little and makes
+    // one far worse does not predict the unseen data better.
+    if (!(a.sse_after < a.sse_before)) {
+      return refuse("held_out",
+                    internal::Format("pooled held-out RMS does not fall (%.4g -> %.4g)",
+                                     s->rms_before, s->rms_after),
+                    false);
+    }
     // The effect's size on this log; or, when a refit absorbs it in sample, out of sample.
     if (!large_held_out) {
       if (!(res_after <= (1.0 - options.min_residual_fall) * res_before)) {

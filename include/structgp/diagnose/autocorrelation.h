@@ -58,7 +58,9 @@ Matrix Prewhiten(const ConstMatrixRef& x, const Vector& phi, const std::vector<i
 /// statistic (the projection of r_before on E, over the variance of r_after) divided by the
 /// same statistic after filtering r_before and E with an AR model fitted to r_after (the
 /// residual with the candidate in the model, so the filter describes the noise and not the
-/// effect), over the variance of its innovations. Under noise that the AR model describes the
+/// effect), over the variance of its innovations, times Bartlett's factor of the filtered
+/// residual against the filtered columns (what the AR model leaves correlated: a wander slower
+/// than its order reaches; 1 when it whitens the residual). Under noise that the AR model describes the
 /// prewhitened statistic is chi-square with E.cols() degrees of freedom; the test then keeps
 /// the power of a candidate whose shape the noise does not share (a step against a slow
 /// wander), where Bartlett's factor, which only sees the two autocorrelations, deflates it as

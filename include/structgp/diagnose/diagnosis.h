@@ -61,7 +61,8 @@ struct DiagnosisOptions {
   /// the autocorrelation correction.
   double min_log_evidence_gain = 10.0;
   /// Minimum relative fall of the held-out RMS of the joint (the confirmation on unseen data),
-  /// as the mean over the folds of each fold's RMS ratio (Suggestion::fold_rms_ratio).
+  /// as the mean over the folds of each fold's RMS ratio (Suggestion::fold_rms_ratio); the RMS
+  /// over all held-out rows together (Suggestion::rms_before -> rms_after) must fall too.
   double min_relative_rms_gain = 0.02;
   /// Family-wise error rate (Holm) or false discovery rate (Benjamini-Hochberg) over every
   /// candidate on every joint.
