@@ -103,6 +103,21 @@ def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     assert structgp.parse_model(diagnosis.suggested_model) == "pol + coulomb@2:width=0.01"
 
 
+def test_the_diagnosis_with_prewhitening_is_the_programs(cli, demo, tmp_path):
+    findings = tmp_path / "findings.json"
+    run(cli, "diagnose", "--model", demo / "model_before.json", "--data", demo / "train.csv",
+        "--json", findings, "--autocorrelation", "prewhitening")
+    expected = json.loads(findings.read_text())
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    model = structgp.Model.load(str(demo / "model_before.json"))
+    diagnosis = structgp.diagnose(model, train.X, train.Y, train.t,
+                                  autocorrelation="prewhitening")
+    assert diagnosis.to_dict() == expected
+    assert diagnosis.suggestions and diagnosis.suggestions[0].spec.startswith("coulomb@2")
+    with pytest.raises(ValueError, match="autocorrelation"):
+        structgp.diagnose(model, train.X, train.Y, train.t, autocorrelation="white")
+
+
 def test_the_diagnosis_loop_is_the_programs(cli, demo, tmp_path):
     """diagnose_loop and `structgp diagnose --rounds`: the same rounds, and the same improved
     model (its predictions equal to the digit)."""
