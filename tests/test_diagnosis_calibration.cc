@@ -208,6 +208,19 @@ DiagnosisOptions WithTraining(const sim::Dataset& train) {
   return options;
 }
 
+// The log of `scenario` diagnosed with `spec` fitted on its training log, white noise (std 0.01,
+// seeds `seed` and seed + 1) added to copies of both, the training data given; printed.
+Diagnosis DiagnoseNoisyLog(const std::string& spec, const sim::HiddenEffectScenario& scenario,
+                           std::uint64_t seed, const char* title) {
+  sim::Dataset train = scenario.train, test = scenario.test;
+  AddWhiteNoise(0.01, seed, &train);
+  AddWhiteNoise(0.01, seed + 1, &test);
+  const RobotModel model = Fit(ParseModelSpec(spec), train);
+  const Diagnosis d = Diagnose(model, test.X, test.Y, test.t, WithTraining(train));
+  std::printf("%s:\n%s", title, ToJson(d).c_str());
+  return d;
+}
+
 // The two-link scenario of `effect` on joint 2 with white training noise and AR(1) noise
 // (phi = 0.99) on the diagnosed log.
 sim::HiddenEffectScenario WithAr1Noise(HiddenEffect effect) {
@@ -518,13 +531,7 @@ TEST(Calibration, AnEffectOnlyTheDiagnosedLogHasIsNamedOnTheLogAlone) {
   }
   // A model with Coulomb friction on every joint (+fri) cannot be missing it on every row,
   // but the step that only the log has is a change of it there: named Coulomb on the log alone.
-  sim::Dataset train = only_log.train, test = only_log.test;
-  AddWhiteNoise(0.01, 13, &train);
-  AddWhiteNoise(0.01, 14, &test);
-  const RobotModel with_friction = Fit(ParseModelSpec("pol+fri"), train);
-  const DiagnosisOptions options = WithTraining(train);
-  const Diagnosis d = Diagnose(with_friction, test.X, test.Y, test.t, options);
-  std::printf("pol+fri, in the log only:\n%s", ToJson(d).c_str());
+  const Diagnosis d = DiagnoseNoisyLog("pol+fri", only_log, 13, "pol+fri, in the log only");
   ASSERT_FALSE(d.suggestions.empty());
   EXPECT_EQ(d.suggestions.front().joint, 2);
   EXPECT_EQ(d.suggestions.front().effect, "coulomb");
@@ -595,13 +602,9 @@ TEST(Calibration, AnEffectThatRaisesThePooledHeldOutErrorIsRefused) {
   for (Eigen::Index i = 0; i < m_log; ++i) {
     only_log.test.Y(i, 1) += (i < 4 * m_log / 5 ? 0.05 : -0.08) * step.hidden_test(i, 1);
   }
-  sim::Dataset train = only_log.train, test = only_log.test;
-  AddWhiteNoise(0.01, 15, &train);
-  AddWhiteNoise(0.01, 16, &test);
-  const RobotModel model = Fit(ParseModelSpec("pol"), train);
-  const DiagnosisOptions options = WithTraining(train);
-  const Diagnosis d = Diagnose(model, test.X, test.Y, test.t, options);
-  std::printf("a step that turns over in the last block:\n%s", ToJson(d).c_str());
+  const Diagnosis d =
+      DiagnoseNoisyLog("pol", only_log, 15, "a step that turns over in the last block");
+  const DiagnosisOptions options;
   for (const Suggestion& s : d.suggestions) {
     EXPECT_LT(s.rms_after, s.rms_before) << s.spec;
     EXPECT_NE(s.joint, 2) << s.spec;
