@@ -680,7 +680,8 @@ TEST(CliDiagnose, TrainWritesTheCoverageVerdictAndTheDistancesPerJoint) {
 }
 
 // A --train file that does not fit is refused naming that file (not --data) and the flag; a
-// --significance outside (0, 0.5] is refused; exit code 2 and nothing written either way.
+// --significance outside (0, 0.5] and an unknown --autocorrelation are refused; exit code 2 and
+// nothing written either way.
 TEST(CliDiagnose, BadTrainOrSignificanceIsRefusedNamingTheFileOrFlag) {
   TempDir dir;
   const std::string d = dir.File("");
@@ -716,6 +717,9 @@ TEST(CliDiagnose, BadTrainOrSignificanceIsRefusedNamingTheFileOrFlag) {
       {"significance 2", {"--significance", "2"}, {"--significance", "(0, 0.5]", "got 2"}},
       {"significance negative", {"--significance", "-0.01"}, {"--significance", "got -0.01"}},
       {"significance not a number", {"--significance", "abc"}, {"--significance", "'abc'"}},
+      {"autocorrelation unknown",
+       {"--autocorrelation", "white"},
+       {"--autocorrelation", "white", "bartlett", "prewhitening", "none"}},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
@@ -733,7 +737,9 @@ TEST(CliDiagnose, BadTrainOrSignificanceIsRefusedNamingTheFileOrFlag) {
   // The limits themselves are accepted, and a --train file that fits.
   for (const std::vector<std::string>& extra :
        {std::vector<std::string>{"--significance", "0.5"},
-        std::vector<std::string>{"--significance", "1e-6", "--train", good}}) {
+        std::vector<std::string>{"--significance", "1e-6", "--train", good},
+        std::vector<std::string>{"--autocorrelation", "prewhitening"},
+        std::vector<std::string>{"--autocorrelation", "none", "--train", good}}) {
     const Result r = RunCli(dir, diagnose(extra));
     EXPECT_EQ(r.code, 0) << extra[1] << ": " << r.err;
   }
