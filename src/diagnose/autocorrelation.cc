@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
 
@@ -11,6 +12,16 @@ namespace {
 // Largest lag looked at: a quarter of the log, at most 2,000.
 int MaxLag(Eigen::Index m) {
   return std::max(1, static_cast<int>(std::min<Eigen::Index>(m / 4, 2000)));
+}
+
+// Each segment of rows 0..m-1 as [begin, end); no starts: one segment.
+std::vector<std::pair<int, int>> SegmentRanges(const std::vector<int>& segment_starts, int m) {
+  const std::vector<int> starts = segment_starts.empty() ? std::vector<int>{0} : segment_starts;
+  std::vector<std::pair<int, int>> ranges;
+  for (size_t s = 0; s < starts.size(); ++s) {
+    ranges.emplace_back(starts[s], s + 1 < starts.size() ? starts[s + 1] : m);
+  }
+  return ranges;
 }
 
 }  // namespace
@@ -24,9 +35,7 @@ Vector Autocorrelation(const ConstVectorRef& x, const std::vector<int>& segment_
   const Vector c = x.array() - x.mean();
   const double c0 = c.squaredNorm();
   if (!(c0 > 0.0)) return rho;
-  const std::vector<int> starts = segment_starts.empty() ? std::vector<int>{0} : segment_starts;
-  for (size_t s = 0; s < starts.size(); ++s) {
-    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : m;
+  for (const auto& [b, e] : SegmentRanges(segment_starts, m)) {
     for (int k = 1; k <= max_lag && k < e - b; ++k) {
       rho[k] += c.segment(b, e - b - k).dot(c.segment(b + k, e - b - k)) / c0;
     }
@@ -100,20 +109,32 @@ Autoregression FitAutoregression(const ConstVectorRef& x, const std::vector<int>
   return ar;
 }
 
+namespace {
+
+// The starts of the segments of a filtered series (Prewhiten: p rows fewer per segment, the
+// segments of p rows or fewer gone), and its row count last.
+std::vector<int> FilteredStarts(const std::vector<int>& segment_starts, int m, int p) {
+  std::vector<int> starts;
+  int row = 0;
+  for (const auto& [b, e] : SegmentRanges(segment_starts, m)) {
+    if (e - b > p) {
+      starts.push_back(row);
+      row += e - b - p;
+    }
+  }
+  starts.push_back(row);
+  return starts;
+}
+
+}  // namespace
+
 Matrix Prewhiten(const ConstMatrixRef& x, const Vector& phi,
                  const std::vector<int>& segment_starts) {
   const int m = static_cast<int>(x.rows());
   const int p = static_cast<int>(phi.size());
-  const std::vector<int> starts = segment_starts.empty() ? std::vector<int>{0} : segment_starts;
-  Eigen::Index rows = 0;
-  for (size_t s = 0; s < starts.size(); ++s) {
-    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : m;
-    rows += std::max(0, e - b - p);
-  }
-  Matrix out(rows, x.cols());
+  Matrix out(FilteredStarts(segment_starts, m, p).back(), x.cols());
   Eigen::Index o = 0;
-  for (size_t s = 0; s < starts.size(); ++s) {
-    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : m;
+  for (const auto& [b, e] : SegmentRanges(segment_starts, m)) {
     for (int t = b + p; t < e; ++t, ++o) {
       out.row(o) = x.row(t);
       for (int k = 1; k <= p; ++k) out.row(o) -= phi[k - 1] * x.row(t - k);
@@ -154,36 +175,32 @@ double PrewhiteningInflation(const ConstVectorRef& r_before, const ConstVectorRe
   const Vector centred = r_after.array() - r_after.mean();
   const double variance = centred.squaredNorm() / static_cast<double>(m);
   const double white = ProjectedSquare(E, r_before) / variance;
-  const Matrix Ew = Prewhiten(E, ar.phi, segment_starts);
-  const Matrix rw = Prewhiten(r_before, ar.phi, segment_starts);
-  const Matrix uw = Prewhiten(centred, ar.phi, segment_starts);
-  if (uw.rows() < 2) return 1.0;
-  const double innovation = uw.squaredNorm() / static_cast<double>(uw.rows());
-  const double whitened = ProjectedSquare(Ew, rw.col(0)) / innovation;
   if (!(white > 0.0) || !std::isfinite(white)) return 1.0;
+  // The candidate's columns, the residual before and the centred residual after, filtered
+  // together.
+  const Eigen::Index k = E.cols();
+  Matrix columns(m, k + 2);
+  columns << E, r_before, centred;
+  const Matrix filtered = Prewhiten(columns, ar.phi, segment_starts);
+  const auto Ew = filtered.leftCols(k);
+  const auto uw = filtered.col(k + 1);
+  if (uw.size() < 2) return 1.0;
+  const double innovation = uw.squaredNorm() / static_cast<double>(uw.size());
+  const double whitened = ProjectedSquare(Ew, filtered.col(k)) / innovation;
   // What the AR model leaves correlated (a wander slower than its order reaches): Bartlett's
   // factor of the filtered residual against each filtered column, on the filtered segments.
-  const int p = static_cast<int>(ar.phi.size());
-  const std::vector<int> starts =
-      segment_starts.empty() ? std::vector<int>{0} : segment_starts;
-  std::vector<int> filtered_starts;
-  int row = 0;
-  for (size_t s = 0; s < starts.size(); ++s) {
-    const int b = starts[s], e = s + 1 < starts.size() ? starts[s + 1] : static_cast<int>(m);
-    if (e - b > p) {
-      filtered_starts.push_back(row);
-      row += e - b - p;
-    }
-  }
+  std::vector<int> filtered_starts = FilteredStarts(
+      segment_starts, static_cast<int>(m), static_cast<int>(ar.phi.size()));
+  filtered_starts.pop_back();  // the row count
   // Over the lags at which the residual itself is correlated: after a good filter each
   // filtered autocorrelation is small, but a wander the filter misses leaves small ones at
   // many lags, which together count (each alone would fall inside the white-noise band).
   const int lags = std::min(CorrelatedLags(r_after, segment_starts),
-                            MaxLag(static_cast<Eigen::Index>(uw.rows())));
+                            MaxLag(uw.size()));
   double residual_correlation = 1.0;
-  for (Eigen::Index k = 0; k < Ew.cols(); ++k) {
+  for (Eigen::Index c = 0; c < k; ++c) {
     residual_correlation = std::max(
-        residual_correlation, BartlettSum(uw.col(0), Ew.col(k), filtered_starts, lags));
+        residual_correlation, BartlettSum(uw, Ew.col(c), filtered_starts, lags));
   }
   // An effect the filter takes away entirely: no evidence left (a finite factor, for JSON).
   const double c = white / std::max(whitened, 1e-12 * white) * residual_correlation;
