@@ -104,6 +104,13 @@ TEST(Autocorrelation, AutoregressionRecoversAnAr2ProcessAndFiltersWithinSegments
   EXPECT_EQ(u.col(0), Vector::Zero(4));
 }
 
+// The white-noise statistic of one candidate column e: the square of r_before it explains, over
+// the variance of r_after (chi-square(1) when every row is an independent sample).
+double WhiteStatistic(const Vector& e, const Vector& r_before, const Vector& r_after) {
+  const double variance = (r_after.array() - r_after.mean()).square().mean();
+  return std::pow(e.dot(r_before), 2) / (e.squaredNorm() * variance);
+}
+
 // Under AR(1) noise (phi = 0.95) and an independent AR(1) candidate (0.8), the test at the 1%
 // level rejects about 1% of the time after prewhitening, against many times that when every
 // row counts as a sample. Under white noise it keeps the white statistic: with an effect of
@@ -112,15 +119,11 @@ TEST(Autocorrelation, PrewhitenedTestHoldsItsLevelUnderAr1Noise) {
   const int m = 2000, draws = 600;
   const double critical = 6.6349;  // chi-square(1), 99%
   std::mt19937_64 rng(17);
-  auto statistic = [](const Vector& e, const Vector& r_before, const Vector& r_after) {
-    const double variance = (r_after.array() - r_after.mean()).square().mean();
-    return std::pow(e.dot(r_before), 2) / (e.squaredNorm() * variance);
-  };
   int rejected_white = 0, rejected_prewhitened = 0;
   double sum_white = 0.0, sum_corrected = 0.0;
   for (int d = 0; d < draws; ++d) {
     const Vector r = Ar1(m, 0.95, 1.0, &rng), e = Ar1(m, 0.8, 1.0, &rng);
-    const double t = statistic(e, r, r);
+    const double t = WhiteStatistic(e, r, r);
     const double c = PrewhiteningInflation(r, r, e, {0});
     EXPECT_GE(c, 1.0);
     rejected_white += t > critical;
@@ -128,7 +131,7 @@ TEST(Autocorrelation, PrewhitenedTestHoldsItsLevelUnderAr1Noise) {
     // White noise, an effect 0.1 e in it.
     const Vector w = Ar1(m, 0.0, 1.0, &rng);
     const Vector w_before = w + 0.1 * e;
-    const double tw = statistic(e, w_before, w);
+    const double tw = WhiteStatistic(e, w_before, w);
     sum_white += tw;
     sum_corrected += tw / PrewhiteningInflation(w_before, w, e, {0});
   }
@@ -156,8 +159,7 @@ TEST(Autocorrelation, PrewhiteningKeepsThePowerOfAStepInASlowWander) {
     r_after[i] = wander[i] + n(rng);
   }
   const Vector r_before = r_after + 0.15 * step;
-  const double variance = (r_after.array() - r_after.mean()).square().mean();
-  const double statistic = std::pow(step.dot(r_before), 2) / (step.squaredNorm() * variance);
+  const double statistic = WhiteStatistic(step, r_before, r_after);
   const double bartlett = BartlettInflation(r_after, step, {0});
   const double prewhitening = PrewhiteningInflation(r_before, r_after, step, {0});
   std::printf("white statistic %.1f, Bartlett %.2f -> %.1f, prewhitening %.2f -> %.1f\n",
