@@ -471,6 +471,89 @@ TEST(Calibration, ConfirmsOnUnseenTrajectoriesOrGappedBlocks) {
   EXPECT_EQ(several.coverage.verdict, Verdict::kMissingEffect);
 }
 
+// What happens on one joint does not change how another joint's candidates are tested. Each
+// joint's candidates are confirmed on blocks with that joint's own gap: a slow wander added to
+// joint 1's torques (AR(1), phi = 0.995) lengthens joint 1's residual correlation and so its
+// gap, and leaves joint 2's gap, and its Coulomb step, as they were (the gap was the
+// correlation length of all joints' residuals together: joint 1 then moved joint 2's blocks).
+// And an effect chosen on joint 1 is not in the base joint 2's candidates are scored against
+// (it was: the weight-space form shares its features among the joints).
+TEST(Calibration, AnotherJointDoesNotChangeHowAJointsCandidatesAreTested) {
+  auto scenario = Clean(HiddenEffect::kCoulomb, 2, 0.1, 20.0);
+  AddWhiteNoise(0.01, 3, &scenario.train);
+  AddWhiteNoise(0.01, 4, &scenario.test);
+  const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
+  auto gap_of = [](const Diagnosis& d, int joint) {
+    int gap = -1;
+    for (const Suggestion& s : d.suggestions) {
+      if (s.joint == joint) {
+        EXPECT_TRUE(gap < 0 || gap == s.confirmation_gap) << s.spec;
+        gap = s.confirmation_gap;
+      }
+    }
+    for (const Refusal& r : d.refused) {
+      if (r.candidate.joint == joint && r.candidate.confirmation_folds > 0) {
+        EXPECT_TRUE(gap < 0 || gap == r.candidate.confirmation_gap) << r.candidate.spec;
+        gap = r.candidate.confirmation_gap;
+      }
+    }
+    return gap;
+  };
+  const Diagnosis plain = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t);
+  ASSERT_FALSE(plain.suggestions.empty());
+  EXPECT_EQ(plain.suggestions.front().spec.substr(0, 9), "coulomb@2");
+  const int gap = gap_of(plain, 2);
+  ASSERT_GT(gap, 0);
+
+  sim::Dataset wandering = scenario.test;
+  std::mt19937_64 rng(7);
+  wandering.Y.col(0) +=
+      Ar1(static_cast<int>(wandering.Y.rows()), 0.995, 0.05, &rng);
+  const Diagnosis d = Diagnose(model, wandering.X, wandering.Y, wandering.t);
+  std::printf("gap of joint 2: %d; with joint 1 wandering: %d (joint 1: %d)\n", gap,
+              gap_of(d, 2), gap_of(d, 1));
+  ASSERT_FALSE(d.suggestions.empty());
+  bool coulomb = false;
+  for (const Suggestion& s : d.suggestions) {
+    if (s.joint == 2) {
+      coulomb = coulomb || s.spec.substr(0, 9) == "coulomb@2";
+      EXPECT_EQ(s.confirmation_gap, gap) << s.spec;
+    }
+  }
+  EXPECT_TRUE(coulomb);
+  EXPECT_EQ(gap_of(d, 2), gap);
+  // Joint 1's own blocks are further apart now (when any of its candidates got that far).
+  const int gap1 = gap_of(d, 1);
+  if (gap1 >= 0) {
+    EXPECT_GT(gap1, gap);
+  }
+
+  // An effect found on joint 1 first (a Coulomb step of 0.3 N m on its torques) is not a
+  // column of joint 2's torque: joint 2's Coulomb step, chosen after it, is scored against the
+  // model alone, as joint 2's candidates of the first round were (the same residual before).
+  sim::Dataset friction1 = scenario.test;
+  friction1.Y.col(0).array() += 0.3 * (friction1.X.col(2).array() / 0.01).tanh();
+  const Diagnosis o = Diagnose(model, friction1.X, friction1.Y, friction1.t);
+  std::printf("with a Coulomb step on joint 1:\n%s", ToJson(o).c_str());
+  ASSERT_GE(o.suggestions.size(), 2u);
+  EXPECT_EQ(o.suggestions.front().spec.substr(0, 9), "coulomb@1");
+  const Suggestion* coulomb2 = nullptr;
+  for (const Suggestion& s : o.suggestions) {
+    if (s.spec.substr(0, 9) == "coulomb@2") coulomb2 = &s;
+  }
+  ASSERT_NE(coulomb2, nullptr);
+  int first_round = 0;
+  for (const Refusal& r : o.refused) {
+    if (r.candidate.joint == 2 && !r.after_suggestions) {
+      ++first_round;
+      EXPECT_NEAR(coulomb2->residual_rms_before, r.candidate.residual_rms_before,
+                  1e-12 * r.candidate.residual_rms_before)
+          << r.candidate.spec;
+    }
+  }
+  EXPECT_GT(first_round, 0);
+}
+
 // Trained on slow motion over a small range, the model predicts a fast, wide log badly; but
 // refitted on that log it reaches the noise: the verdict is coverage, with the joints named,
 // no effect is suggested, and the training inputs show where the log leaves them. On its own

@@ -1,8 +1,10 @@
 #include "structgp/diagnose/diagnosis.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -411,6 +413,7 @@ void OrderFindings(const DiagnosisOptions& options, Diagnosis* d) {
 
 // Held-out blocks of the confirmation and the statistics of each block's fit.
 struct FoldSet {
+  int first = 0;                            // the rows first.. it splits
   std::vector<std::pair<int, int>> ranges;  // (first row, rows) of each held-out block
   int gap = 0;                              // rows left out on each side (same trajectory)
   bool by_trajectory = false;               // blocks are whole trajectories
@@ -687,9 +690,13 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   }
   // Held-out blocks of the rows first.. first + count - 1 (whole trajectories when they hold
   // enough of them), each block's fit on every other row but the gap: rows next to a held-out
-  // block (same trajectory) are too correlated with it to count as unseen.
-  auto make_folds = [&](int first, int count) {
+  // block (same trajectory) are too correlated with it to count as unseen. The gap is joint
+  // j's own (how far apart its residuals are unrelated), so that another joint's residual
+  // does not change how j's candidates are confirmed; the statistics come later, once per
+  // distinct set.
+  auto fold_layout = [&](int first, int count, int j) {
     FoldSet set;
+    set.first = first;
     std::vector<int> local_starts;
     for (int s : starts) {
       if (s >= first && s < first + count) local_starts.push_back(s - first);
@@ -700,43 +707,80 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     if (!set.by_trajectory) {
       int smallest = count;
       for (const auto& [begin, size] : set.ranges) smallest = std::min(smallest, size);
-      const Matrix part = refit_residual.middleRows(first, count);
       set.gap = options.confirmation_gap >= 0
                     ? options.confirmation_gap
-                    : CorrelationLength(only_joint > 0 ? Matrix(part.col(only_joint - 1)) : part,
+                    : CorrelationLength(refit_residual.col(j).segment(first, count),
                                         local_starts, 0.1);
       set.gap = std::min(set.gap, smallest / 2);
     }
-    for (const auto& [begin, size] : set.ranges) {
-      std::vector<int> rows(static_cast<size_t>(size));
-      std::iota(rows.begin(), rows.end(), begin);
-      const int end = begin + size;
-      for (int i = std::max(0, begin - set.gap); i < begin; ++i) {
-        if (segment_of[i] == segment_of[begin]) rows.push_back(i);
-      }
-      for (int i = end; i < std::min(m, end + set.gap); ++i) {
-        if (segment_of[i] == segment_of[end - 1]) rows.push_back(i);
-      }
-      Matrix G_out, cross_out;
-      statistics(rows, &G_out, &cross_out);
-      set.G.push_back(G_total - G_out);
-      set.cross.push_back(cross_total - cross_out);
-      set.held_out_rows += size;
-    }
     return set;
   };
-  // Every row's blocks; and with the training data, the diagnosed log's own blocks, where an
-  // effect of scope "log" acts (its columns are zero on the training rows): it is confirmed on
-  // unseen parts of the log, with the training rows in every block's fit. Over every row, a
-  // log that is a small part of the rows is held out in one or two blocks whose fits keep
-  // little or nothing of it to fit the effect on.
-  std::vector<FoldSet> fold_sets;
-  fold_sets.push_back(make_folds(0, m));
+  // Each block's own statistics, per first row of a split (the joints' sets of one split
+  // differ in their gaps only).
+  std::map<int, std::vector<std::pair<Matrix, Matrix>>> block_statistics;
+  auto fold_statistics = [&](FoldSet* set) {
+    auto& own = block_statistics[set->first];
+    if (own.empty()) {
+      for (const auto& [begin, size] : set->ranges) {
+        std::vector<int> rows(static_cast<size_t>(size));
+        std::iota(rows.begin(), rows.end(), begin);
+        own.emplace_back();
+        statistics(rows, &own.back().first, &own.back().second);
+      }
+    }
+    for (size_t f = 0; f < set->ranges.size(); ++f) {
+      const auto [begin, size] = set->ranges[f];
+      const int end = begin + size;
+      std::vector<int> gap_rows;
+      for (int i = std::max(0, begin - set->gap); i < begin; ++i) {
+        if (segment_of[i] == segment_of[begin]) gap_rows.push_back(i);
+      }
+      for (int i = end; i < std::min(m, end + set->gap); ++i) {
+        if (segment_of[i] == segment_of[end - 1]) gap_rows.push_back(i);
+      }
+      set->G.push_back(G_total - own[f].first);
+      set->cross.push_back(cross_total - own[f].second);
+      if (!gap_rows.empty()) {
+        Matrix G_gap, cross_gap;
+        statistics(gap_rows, &G_gap, &cross_gap);
+        set->G.back() -= G_gap;
+        set->cross.back() -= cross_gap;
+      }
+      set->held_out_rows += size;
+    }
+  };
+  // Per scope, every row's blocks; and with the training data, the diagnosed log's own
+  // blocks, where an effect of scope "log" acts (its columns are zero on the training rows):
+  // it is confirmed on unseen parts of the log, with the training rows in every block's fit.
+  // Over every row, a log that is a small part of the rows is held out in one or two blocks
+  // whose fits keep little or nothing of it to fit the effect on.
   const bool log_folds = log_begin > 0 && m_log >= 4 * options.folds;
-  if (log_folds) fold_sets.push_back(make_folds(log_begin, m_log));
+  const int num_scopes = log_folds ? 2 : 1;
   auto folds_of_scope = [&](const std::string& scope) -> int {
     return scope == "log" && log_folds ? 1 : 0;
   };
+  std::vector<FoldSet> fold_sets;
+  // fold_set_of[j][scope]: joint j's blocks (an index into fold_sets; joints whose gaps agree
+  // share them).
+  std::vector<std::array<int, 2>> fold_set_of(static_cast<size_t>(N), {-1, -1});
+  for (int j = 0; j < N; ++j) {
+    if (only_joint > 0 && j != only_joint - 1) continue;
+    for (int scope = 0; scope < num_scopes; ++scope) {
+      FoldSet set = scope == 0 ? fold_layout(0, m, j) : fold_layout(log_begin, m_log, j);
+      int index = -1;
+      for (size_t k = 0; k < fold_sets.size(); ++k) {
+        if (fold_sets[k].first == set.first && fold_sets[k].gap == set.gap) {
+          index = static_cast<int>(k);
+        }
+      }
+      if (index < 0) {
+        fold_statistics(&set);
+        index = static_cast<int>(fold_sets.size());
+        fold_sets.push_back(std::move(set));
+      }
+      fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)] = index;
+    }
+  }
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
@@ -751,21 +795,27 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   const double s2n = hyper.noise_variance();
   const Vector s2 = hyper.output_scales().cwiseAbs2();
 
-  // Fits of a base set of columns on all data and on each block's fit rows, per fold set.
+  // Fits of a base set of columns on all data and on each block's fit rows of joint j's fold
+  // sets: a base only joint j's candidates are tested against.
   struct BaseFits {
     Index cols;
     BaseFit all;
-    std::vector<std::vector<BaseFit>> folds;  // [fold set][block]
+    std::vector<std::vector<BaseFit>> folds;  // [fold set][block]; empty for another joint's
     Matrix residual;  // Yg - F_B W on all data (m x N)
   };
-  auto fit_base = [&](const Index& cols, BaseFits* b) {
+  auto fit_base = [&](const Index& cols, BaseFits* b, int j) {
     b->cols = cols;
     b->all = FitBase(G_total, cross_total, cols, lambda, s2n);
     if (!b->all.ok) return false;
     b->folds.assign(fold_sets.size(), {});
     for (size_t k = 0; k < fold_sets.size(); ++k) {
+      if (fold_set_of[static_cast<size_t>(j)][0] != static_cast<int>(k) &&
+          fold_set_of[static_cast<size_t>(j)][1] != static_cast<int>(k)) {
+        continue;
+      }
       for (size_t f = 0; f < fold_sets[k].ranges.size(); ++f) {
-        b->folds[k].push_back(FitBase(fold_sets[k].G[f], fold_sets[k].cross[f], cols, lambda, s2n));
+        b->folds[k].push_back(
+            FitBase(fold_sets[k].G[f], fold_sets[k].cross[f], cols, lambda, s2n));
         if (!b->folds[k].back().ok) return false;
       }
     }
@@ -781,12 +831,16 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     int folds_improved = 0;
     double fold_ratio = 1;  // mean over the folds of the held-out RMS after / before
     int fold_set = 0;       // the blocks they come from (fold_sets)
+    int scope = 0;          // 0: every row's blocks, 1: the log's
     Vector change;         // the change in the fitted torque of joint j on all data
     Vector residual_after;
     Vector we;
   };
-  // The held-out numbers come from the blocks of fold set `k` (0: every row, 1: the log's).
-  auto add_columns = [&](const BaseFits& b, const Index& E, int j, int k) {
+  // The held-out numbers come from joint j's blocks of scope `scope` (0: every row, 1: the
+  // log's).
+  // (b is a base of joint j: fitted on its fold sets.)
+  auto add_columns = [&](const BaseFits& b, const Index& E, int j, int scope) {
+    const int k = fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)];
     Addition a;
     const Augmented aug = Augment(b.all, G_total, cross_total, b.cols, E, lambda, s2n);
     if (!aug.ok) return a;
@@ -817,6 +871,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       ratio_sum += sb > 0 ? std::sqrt(sa / sb) : 1.0;
     }
     a.fold_set = k;
+    a.scope = scope;
     a.fold_ratio = ratio_sum / std::max(1, num_folds);
     const Vector delta = b.all.llt.matrixU().solve(Vector(aug.V * a.we));
     a.change = F(Eigen::all, E) * a.we - F(Eigen::all, b.cols) * delta;
@@ -928,7 +983,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     // whole log differs from the training rows (a bias, a load it carries) and predict its
     // unseen blocks for that reason, so an effect of the log alone needs the evidence.
     const bool large_held_out = a.fold_ratio <= 1.0 - options.held_out_fall_alone;
-    const bool held_out_route = options.held_out_may_replace_evidence && a.fold_set == 0 &&
+    const bool held_out_route = options.held_out_may_replace_evidence && a.scope == 0 &&
                                 gain_white >= 0.0 && large_held_out &&
                                 a.folds_improved >= s->confirmation_folds - 1;
     // Cheap bars first (the calibration below costs O(m K) per column).
@@ -1008,14 +1063,24 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   // The suggestions so far, with the candidate each one is.
   std::vector<std::pair<int, Suggestion>> picks;
   std::map<std::tuple<std::string, int, std::string>, Refusal> refused;
-  BaseFits base;
+  // Each joint's candidates are tested against the model's columns and the suggestions on
+  // that joint: an effect of another joint is not part of this joint's torque, and as a
+  // column of it (the weight-space form shares its features among the joints) it would let an
+  // effect found on one joint change what another joint is suggested.
+  const auto base_failed = [&out]() {
+    out.status = DiagnosisStatus::kNumericalFailure;
+    out.message = "the model's posterior could not be factorised on these data (not "
+                  "positive definite)";
+    return out;
+  };
+  std::vector<std::shared_ptr<const BaseFits>> joint_base(static_cast<size_t>(N));
+  for (int j = 0; j < N; ++j) {
+    if (only_joint > 0 && j != only_joint - 1) continue;
+    auto model_base = std::make_shared<BaseFits>();
+    if (!fit_base(B, model_base.get(), j)) return base_failed();
+    joint_base[static_cast<size_t>(j)] = std::move(model_base);
+  }
   while (static_cast<int>(picks.size()) < options.max_suggestions) {
-    if (!fit_base(B, &base)) {
-      out.status = DiagnosisStatus::kNumericalFailure;
-      out.message = "the model's posterior could not be factorised on these data (not "
-                    "positive definite)";
-      return out;
-    }
     const int round = static_cast<int>(picks.size());
     int best = -1;
     Suggestion best_s;
@@ -1023,6 +1088,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       if (!candidates[ci].alive) continue;
       Suggestion s;
       Refusal refusal;
+      const BaseFits& base = *joint_base[static_cast<size_t>(candidates[ci].joint - 1)];
       if (!evaluate(base, ci, round, &s, &refusal)) {
         // Against the model as given, the closest parameter set of each effect, joint and
         // scope; a candidate that passed there and fails after the suggestions chosen since
@@ -1051,7 +1117,12 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     if (best < 0) break;
     const Candidate& chosen = candidates[static_cast<size_t>(best)];
     picks.emplace_back(best, best_s);
-    B.insert(B.end(), chosen.cols.begin(), chosen.cols.end());
+    const int chosen_joint = chosen.joint - 1;
+    Index cols = joint_base[static_cast<size_t>(chosen_joint)]->cols;
+    cols.insert(cols.end(), chosen.cols.begin(), chosen.cols.end());
+    auto next = std::make_shared<BaseFits>();
+    if (!fit_base(cols, next.get(), chosen_joint)) return base_failed();
+    joint_base[static_cast<size_t>(chosen_joint)] = std::move(next);
     for (auto& c : candidates) {
       if (c.effect == chosen.effect && c.joint == chosen.joint) c.alive = false;
     }
@@ -1061,7 +1132,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   // Coulomb, viscous, Stribeck, drift and offset overlap: the greedy step may take the one that
   // explains most of the log alone where a pair explains it better. Per joint, every set of
   // at most three of those that passed (one parameter set per effect) is scored by its
-  // calibrated evidence against the base with every other suggestion.
+  // calibrated evidence against the base with the joint's other suggestions.
   static const std::set<std::string> kFrictionLike = {"viscous", "coulomb", "stribeck", "drift",
                                                       "offset"};
   for (int joint = 1; joint <= N; ++joint) {
@@ -1076,7 +1147,8 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     Index others(static_cast<size_t>(base_map->dim()));
     std::iota(others.begin(), others.end(), 0);
     for (const auto& [ci, s] : picks) {
-      if (s.joint == joint && kFrictionLike.count(s.effect)) {
+      if (s.joint != joint) continue;
+      if (kFrictionLike.count(s.effect)) {
         greedy_set.push_back(ci);
       } else {
         const Index& cols = candidates[static_cast<size_t>(ci)].cols;
@@ -1085,7 +1157,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
     if (greedy_set.empty()) continue;
     BaseFits rest;
-    if (!fit_base(others, &rest)) continue;
+    if (!fit_base(others, &rest, joint - 1)) continue;
     auto columns_of = [&](const std::vector<int>& set) {
       Index cols;
       for (int ci : set) {
@@ -1104,9 +1176,8 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     // The greedy choice's held-out numbers on each fold set: a set is compared with it on the
     // blocks the set is confirmed on.
     std::vector<Addition> greedy_adds;
-    for (size_t k = 0; k < fold_sets.size(); ++k) {
-      greedy_adds.push_back(
-          add_columns(rest, columns_of(greedy_set), joint - 1, static_cast<int>(k)));
+    for (int scope = 0; scope < num_scopes; ++scope) {
+      greedy_adds.push_back(add_columns(rest, columns_of(greedy_set), joint - 1, scope));
     }
     const Addition& greedy_add = greedy_adds[static_cast<size_t>(folds_of(greedy_set))];
     if (!greedy_add.ok) continue;
@@ -1146,7 +1217,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       }
       if (effects.size() != set.size()) continue;
       const Addition a = add_columns(rest, columns_of(set), joint - 1, folds_of(set));
-      if (!a.ok || a.fold_ratio > greedy_adds[static_cast<size_t>(a.fold_set)].fold_ratio) continue;
+      if (!a.ok || a.fold_ratio > greedy_adds[static_cast<size_t>(a.scope)].fold_ratio) continue;
       const double gain = set_gain(set, a);
       if (gain > best_gain) {
         best_set = set;

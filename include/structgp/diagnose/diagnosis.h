@@ -26,7 +26,11 @@
 ///   effect tried on the diagnosed log alone (Suggestion::scope "log") on the log's own
 ///   trajectories or blocks, with the training rows in every fit.
 /// A candidate is suggested only when all of them say so. Suggestions are chosen greedily
-/// (after the best is added, the others are scored again); then, per joint, the friction-like
+/// (after the best is added, the others are scored again); a joint's candidates are scored
+/// against the model with the suggestions on that joint only (an effect of another joint is
+/// not part of this joint's torque), each confirmed with its joint's own gap, so that what
+/// is found on one joint does not change what another joint is suggested (the noise level
+/// the log is scored at is still one for all joints). Then, per joint, the friction-like
 /// effects that passed (viscous, Coulomb, Stribeck, drift, offset) are also chosen jointly,
 /// and the joint set replaces the greedy one when it is better on unseen data.
 ///
@@ -101,9 +105,10 @@ struct DiagnosisOptions {
   /// Minimum size of the effect against its posterior standard deviation (the square root of
   /// the calibrated chi-square statistic).
   double min_effect_z = 4.0;
-  /// Rows left out on each side of a held-out block (same trajectory only); -1: the residual's
-  /// correlation length (first lag where its autocorrelation falls below 0.1), at most half a
-  /// block.
+  /// Rows left out on each side of a held-out block (same trajectory only); -1: the tested
+  /// joint's residual's correlation length (first lag where its autocorrelation falls below
+  /// 0.1; each joint its own, so that another joint's residual does not move its blocks), at
+  /// most half a block.
   int confirmation_gap = -1;
   /// The coverage finding: a joint's error is "coverage" when the model's RMS on the log
   /// exceeds coverage_ratio times the RMS of the model refitted on the log, and that refit
@@ -225,8 +230,8 @@ struct Suggestion {
   /// are tried when training data are given, each counted as a test.
   std::string scope = "all";
   /// The joint's residual on every row of the log, the model refitted there without and with
-  /// the effect (with the suggestions chosen before it in both): what the report plots against
-  /// q and qd. Not written to FINDINGS.json.
+  /// the effect (with the suggestions chosen before it on its joint in both): what the report
+  /// plots against q and qd. Not written to FINDINGS.json.
   Vector residual_before_rows, residual_after_rows;
   /// The text to add to --effects, e.g. "cogging@3:period=0.3": ParseEffectList(spec) gives
   /// back this effect on this joint, with these params.
@@ -236,8 +241,8 @@ struct Suggestion {
 /// A candidate that was not suggested, and the bar that refused it (Diagnosis::refused): the
 /// answer to "why is X not named?". Scored against the model as given (before any
 /// suggestion), the best parameter set of its effect, joint and scope; or, when it passed
-/// every bar there, scored against the model with the suggestions chosen before it
-/// (`after_suggestions`: they explain it).
+/// every bar there, scored against the model with the suggestions chosen before it on its
+/// joint (`after_suggestions`: they explain it).
 struct Refusal {
   /// The candidate's numbers as far as the scoring went: the evidence, held-out and size
   /// numbers always; inflation, effective_samples, score, z and the p-values only when
