@@ -781,6 +781,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)] = index;
     }
   }
+  block_statistics.clear();  // in the fold sets now
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
