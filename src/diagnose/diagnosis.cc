@@ -119,7 +119,9 @@ struct BaseFit {
   bool ok = false;
 };
 
-BaseFit FitBase(const Matrix& G, const Matrix& cross, const Index& B, const Vector& lambda,
+// G: a Matrix, or a FoldGram (below); read as G(I, J) with index lists.
+template <typename Gram>
+BaseFit FitBase(const Gram& G, const Matrix& cross, const Index& B, const Vector& lambda,
                 double s2n) {
   BaseFit fit;
   Matrix A = G(B, B);
@@ -138,7 +140,8 @@ struct Augmented {
   bool ok = false;
 };
 
-Augmented Augment(const BaseFit& base, const Matrix& G, const Matrix& cross, const Index& B,
+template <typename Gram>
+Augmented Augment(const BaseFit& base, const Gram& G, const Matrix& cross, const Index& B,
                   const Index& E, const Vector& lambda, double s2n) {
   Augmented a;
   const Matrix GBE = G(B, E);
@@ -411,6 +414,21 @@ void OrderFindings(const DiagnosisOptions& options, Diagnosis* d) {
   }
 }
 
+// The Gram matrix of a held-out block's fit rows, G_total - G_block - F_gap^T F_gap, read by
+// index lists as a Matrix is: the rows of the gap next to the block are kept as rows (at most
+// twice the gap), not as a Gram matrix over every column, so that the fold sets of joints with
+// different gaps share the blocks' Gram matrices.
+struct FoldGram {
+  const Matrix* total = nullptr;
+  const Matrix* block = nullptr;
+  Matrix gap;  // F(gap rows, all columns)
+  Matrix operator()(const Index& I, const Index& J) const {
+    Matrix r = (*total)(I, J) - (*block)(I, J);
+    if (gap.rows() > 0) r.noalias() -= gap(Eigen::all, I).transpose() * gap(Eigen::all, J);
+    return r;
+  }
+};
+
 // Held-out blocks of the confirmation and the statistics of each block's fit.
 struct FoldSet {
   int first = 0;                            // the rows first.. it splits
@@ -418,7 +436,8 @@ struct FoldSet {
   int gap = 0;                              // rows left out on each side (same trajectory)
   bool by_trajectory = false;               // blocks are whole trajectories
   int held_out_rows = 0;                    // rows of all blocks
-  std::vector<Matrix> G, cross;             // Phi^T Phi and Phi^T Y of each block's fit rows
+  std::vector<FoldGram> G;                  // Phi^T Phi of each block's fit rows
+  std::vector<Matrix> cross;                // Phi^T Y of each block's fit rows
 };
 
 // Diagnose, with numerical trouble deep inside (a profile of the evidence, the Nystrom
@@ -716,7 +735,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     return set;
   };
   // Each block's own statistics, per first row of a split (the joints' sets of one split
-  // differ in their gaps only).
+  // differ in their gaps only); the fold sets point into them.
   std::map<int, std::vector<std::pair<Matrix, Matrix>>> block_statistics;
   auto fold_statistics = [&](FoldSet* set) {
     auto& own = block_statistics[set->first];
@@ -738,13 +757,14 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       for (int i = end; i < std::min(m, end + set->gap); ++i) {
         if (segment_of[i] == segment_of[end - 1]) gap_rows.push_back(i);
       }
-      set->G.push_back(G_total - own[f].first);
+      FoldGram gram;
+      gram.total = &G_total;
+      gram.block = &own[f].first;
+      gram.gap = F(gap_rows, Eigen::all);
+      set->G.push_back(std::move(gram));
       set->cross.push_back(cross_total - own[f].second);
       if (!gap_rows.empty()) {
-        Matrix G_gap, cross_gap;
-        statistics(gap_rows, &G_gap, &cross_gap);
-        set->G.back() -= G_gap;
-        set->cross.back() -= cross_gap;
+        set->cross.back().noalias() -= set->G.back().gap.transpose() * Yg(gap_rows, Eigen::all);
       }
       set->held_out_rows += size;
     }
@@ -781,7 +801,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)] = index;
     }
   }
-  block_statistics.clear();  // in the fold sets now
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
