@@ -510,8 +510,9 @@ TEST(Calibration, AnotherJointDoesNotChangeHowAJointsCandidatesAreTested) {
   wandering.Y.col(0) +=
       Ar1(static_cast<int>(wandering.Y.rows()), 0.995, 0.05, &rng);
   const Diagnosis d = Diagnose(model, wandering.X, wandering.Y, wandering.t);
-  std::printf("gap of joint 2: %d; with joint 1 wandering: %d (joint 1: %d)\n", gap,
-              gap_of(d, 2), gap_of(d, 1));
+  const int gap2 = gap_of(d, 2), gap1 = gap_of(d, 1);
+  std::printf("gap of joint 2: %d; with joint 1 wandering: %d (joint 1: %d)\n", gap, gap2,
+              gap1);
   ASSERT_FALSE(d.suggestions.empty());
   bool coulomb = false;
   for (const Suggestion& s : d.suggestions) {
@@ -521,9 +522,8 @@ TEST(Calibration, AnotherJointDoesNotChangeHowAJointsCandidatesAreTested) {
     }
   }
   EXPECT_TRUE(coulomb);
-  EXPECT_EQ(gap_of(d, 2), gap);
+  EXPECT_EQ(gap2, gap);
   // Joint 1's own blocks are further apart now (when any of its candidates got that far).
-  const int gap1 = gap_of(d, 1);
   if (gap1 >= 0) {
     EXPECT_GT(gap1, gap);
   }

@@ -801,6 +801,10 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)] = index;
     }
   }
+  auto folds_of_joint = [&](int j, int scope) -> const FoldSet& {
+    return fold_sets[static_cast<size_t>(
+        fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)])];
+  };
 
   // The noise level and output scales are re-estimated on these data by evidence (the model's
   // prior structure kept), so that the evidence gains below are calibrated to this log.
@@ -820,27 +824,32 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   struct BaseFits {
     Index cols;
     BaseFit all;
-    std::vector<std::vector<BaseFit>> folds;  // [fold set][block]; empty for another joint's
+    std::vector<std::vector<BaseFit>> folds;  // [scope][block], on joint j's fold sets
     Matrix residual;  // Yg - F_B W on all data (m x N)
   };
-  auto fit_base = [&](const Index& cols, BaseFits* b, int j) {
+  // The fit on all data (the same for every joint), then joint j's blocks.
+  auto fit_all = [&](const Index& cols, BaseFits* b) {
     b->cols = cols;
     b->all = FitBase(G_total, cross_total, cols, lambda, s2n);
     if (!b->all.ok) return false;
-    b->folds.assign(fold_sets.size(), {});
-    for (size_t k = 0; k < fold_sets.size(); ++k) {
-      if (fold_set_of[static_cast<size_t>(j)][0] != static_cast<int>(k) &&
-          fold_set_of[static_cast<size_t>(j)][1] != static_cast<int>(k)) {
-        continue;
-      }
-      for (size_t f = 0; f < fold_sets[k].ranges.size(); ++f) {
-        b->folds[k].push_back(
-            FitBase(fold_sets[k].G[f], fold_sets[k].cross[f], cols, lambda, s2n));
-        if (!b->folds[k].back().ok) return false;
-      }
-    }
     b->residual = Yg - F(Eigen::all, cols) * b->all.W;
     return true;
+  };
+  auto fit_folds = [&](BaseFits* b, int j) {
+    const Index& cols = b->cols;
+    b->folds.assign(static_cast<size_t>(num_scopes), {});
+    for (int scope = 0; scope < num_scopes; ++scope) {
+      const FoldSet& set = folds_of_joint(j, scope);
+      auto& fits = b->folds[static_cast<size_t>(scope)];
+      for (size_t f = 0; f < set.ranges.size(); ++f) {
+        fits.push_back(FitBase(set.G[f], set.cross[f], cols, lambda, s2n));
+        if (!fits.back().ok) return false;
+      }
+    }
+    return true;
+  };
+  auto fit_base = [&](const Index& cols, BaseFits* b, int j) {
+    return fit_all(cols, b) && fit_folds(b, j);
   };
   // What adding the columns E to a base does to joint j.
   struct Addition {
@@ -850,17 +859,14 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     double sse_before = 0, sse_after = 0;  // held-out, over the folds
     int folds_improved = 0;
     double fold_ratio = 1;  // mean over the folds of the held-out RMS after / before
-    int fold_set = 0;       // the blocks they come from (fold_sets)
-    int scope = 0;          // 0: every row's blocks, 1: the log's
+    int scope = 0;          // the blocks they come from: 0 every row's, 1 the log's
     Vector change;         // the change in the fitted torque of joint j on all data
     Vector residual_after;
     Vector we;
   };
   // The held-out numbers come from joint j's blocks of scope `scope` (0: every row, 1: the
-  // log's).
-  // (b is a base of joint j: fitted on its fold sets.)
+  // log's); b is a base of joint j.
   auto add_columns = [&](const BaseFits& b, const Index& E, int j, int scope) {
-    const int k = fold_set_of[static_cast<size_t>(j)][static_cast<size_t>(scope)];
     Addition a;
     const Augmented aug = Augment(b.all, G_total, cross_total, b.cols, E, lambda, s2n);
     if (!aug.ok) return a;
@@ -870,12 +876,12 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     double log_lambda_e = 0.0;
     for (int col : E) log_lambda_e += std::log(lambda[col]);
     a.occam = 0.5 * (log_det_z + log_lambda_e - static_cast<double>(E.size()) * std::log(s2n));
-    const FoldSet& set = fold_sets[static_cast<size_t>(k)];
+    const FoldSet& set = folds_of_joint(j, scope);
     const int num_folds = static_cast<int>(set.ranges.size());
     double ratio_sum = 0.0;
     for (int f = 0; f < num_folds; ++f) {
       const auto [begin, count] = set.ranges[f];
-      const BaseFit& base = b.folds[static_cast<size_t>(k)][f];
+      const BaseFit& base = b.folds[static_cast<size_t>(scope)][f];
       const Augmented af = Augment(base, set.G[f], set.cross[f], b.cols, E, lambda, s2n);
       if (!af.ok) return Addition{};
       const Vector we = af.z.solve(Vector(af.u.col(j)));
@@ -890,7 +896,6 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       if (sa < sb) ++a.folds_improved;
       ratio_sum += sb > 0 ? std::sqrt(sa / sb) : 1.0;
     }
-    a.fold_set = k;
     a.scope = scope;
     a.fold_ratio = ratio_sum / std::max(1, num_folds);
     const Vector delta = b.all.llt.matrixU().solve(Vector(aug.V * a.we));
@@ -953,7 +958,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   // themselves with `rows`: a suggestion's, not a refused candidate's).
   auto record_outcome = [&](const BaseFits& b, const Addition& a, int j, Suggestion* s,
                             bool rows) {
-    const FoldSet& set = fold_sets[static_cast<size_t>(a.fold_set)];
+    const FoldSet& set = folds_of_joint(j, a.scope);
     s->confirmation = set.by_trajectory ? "trajectories" : "blocks";
     s->confirmation_folds = static_cast<int>(set.ranges.size());
     s->confirmation_gap = set.gap;
@@ -1094,11 +1099,15 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     return out;
   };
   std::vector<std::shared_ptr<const BaseFits>> joint_base(static_cast<size_t>(N));
-  for (int j = 0; j < N; ++j) {
-    if (only_joint > 0 && j != only_joint - 1) continue;
-    auto model_base = std::make_shared<BaseFits>();
-    if (!fit_base(B, model_base.get(), j)) return base_failed();
-    joint_base[static_cast<size_t>(j)] = std::move(model_base);
+  {
+    BaseFits model_fit;  // the fit on all data, copied into each joint's base
+    if (!fit_all(B, &model_fit)) return base_failed();
+    for (int j = 0; j < N; ++j) {
+      if (only_joint > 0 && j != only_joint - 1) continue;
+      auto base = std::make_shared<BaseFits>(model_fit);
+      if (!fit_folds(base.get(), j)) return base_failed();
+      joint_base[static_cast<size_t>(j)] = std::move(base);
+    }
   }
   while (static_cast<int>(picks.size()) < options.max_suggestions) {
     const int round = static_cast<int>(picks.size());
