@@ -23,10 +23,14 @@ fi
 build=${STRUCTGP_FUZZ_BUILD_DIR:-build-fuzz}
 jobs=$(nproc 2>/dev/null || echo 2)
 
+# A tree already configured with the fuzz targets (scripts/run-tests.sh's ASan tree, which
+# also builds the tests) is used as it is; otherwise the fuzz targets get a tree of their own.
 # -O1 (libFuzzer's documentation builds its targets with -O1 or -O2): faster to compile than -O3.
-CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-  -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DSTRUCTGP_BUILD_FUZZERS=ON -DBUILD_TESTING=OFF -DSTRUCTGP_BUILD_BENCHMARKS=OFF \
-  -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF > /dev/null
+if ! grep -q '^STRUCTGP_BUILD_FUZZERS:BOOL=ON$' "$build/CMakeCache.txt" 2>/dev/null; then
+  CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DSTRUCTGP_BUILD_FUZZERS=ON -DBUILD_TESTING=OFF -DSTRUCTGP_BUILD_BENCHMARKS=OFF \
+    -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF > /dev/null
+fi
 cmake --build "$build" -j "$jobs" --target "${targets[@]}"
 
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}

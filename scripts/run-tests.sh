@@ -4,8 +4,9 @@
 # into a scratch prefix, builds the downstream consumer in examples/consumer against it and
 # imports the installed Python module. Then the reliability passes
 # (docs/reliability.md): the whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer
-# (build-asan), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer target
-# on 100,000 inputs from a fixed seed (build-fuzz, scripts/run-fuzzers.sh).
+# (build-asan, clang), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer
+# target, built in the same instrumented tree as the ASan suite, on 100,000 inputs from a fixed
+# seed (scripts/run-fuzzers.sh).
 # STRUCTGP_SKIP_SANITIZERS=1 skips these passes (for a quick local run; CI runs them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -43,14 +44,20 @@ if [ -n "$module" ]; then
 fi
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
-  # ASan + UBSan at -O1 (half the compile time of -O3 per file): every test of the suite but
-  # the long ones listed in tests/release_only.txt, which repeat at larger sizes or end to end
-  # code paths that the tests named next to them run under the sanitizers
-  # (docs/reliability.md, section 5). Benchmark programs are not tests, and the experiments'
-  # quick checks are too slow under ASan: both left out.
+  # ASan + UBSan with clang at -O1 (half the compile time of -O3 per file), in one tree with
+  # the libFuzzer targets (STRUCTGP_BUILD_FUZZERS: the library carries libFuzzer's coverage
+  # instrumentation, which the tests do not use), so that one instrumented library serves both
+  # passes: every test of the suite but the long ones listed in tests/release_only.txt, which
+  # repeat at larger sizes or end to end code paths that the tests named next to them run under
+  # the sanitizers (docs/reliability.md, section 5). Benchmark programs are not tests, and the
+  # experiments' quick checks are too slow under ASan: both left out.
   asan=${STRUCTGP_ASAN_BUILD_DIR:-build-asan}
-  cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=address \
-        -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" \
+  # A tree configured with another compiler (GCC, before) is configured again from scratch.
+  if [ -f "$asan/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++' "$asan/CMakeCache.txt"; then
+    rm -rf "$asan"
+  fi
+  CC=clang CXX=clang++ cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+        -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DSTRUCTGP_BUILD_FUZZERS=ON \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF
   cmake --build "$asan" -j "$jobs"
   release_only=$(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' -e 's/^/^/' -e 's/$/$/' \
@@ -74,9 +81,10 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
     ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R "$threaded"
 
-  # libFuzzer, each target from its seed corpus: a fixed number of inputs from a fixed seed, so that the result is reproducible (new bugs
-  # are hunted with time-bounded runs: scripts/run-fuzzers.sh SECONDS).
-  STRUCTGP_FUZZ_BUILD_DIR=${STRUCTGP_FUZZ_BUILD_DIR:-build-fuzz} \
+  # libFuzzer, each target from its seed corpus, built in the ASan tree above: a fixed number
+  # of inputs from a fixed seed, so that the result is reproducible (new bugs are hunted with
+  # time-bounded runs: scripts/run-fuzzers.sh SECONDS).
+  STRUCTGP_FUZZ_BUILD_DIR="$asan" \
   STRUCTGP_FUZZ_RUNS=${STRUCTGP_FUZZ_RUNS:-100000} \
     bash scripts/run-fuzzers.sh
 fi

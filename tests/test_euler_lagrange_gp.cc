@@ -840,12 +840,12 @@ TEST(EulerLagrangeGP, TypeIIMapMaximisesTheEvidencePlusThePriorAroundTheDataDeri
   const double width = options.prior.block_scale_width;
   ASSERT_EQ(options.prior.noise_width, width);
 
-  const auto logs = [n](const EulerLagrangeGPHyperparameters& h) {
+  const auto logs = [](const EulerLagrangeGPHyperparameters& h) {
     Vector x(3 * n);
     x << h.part_weights.array().log().matrix(), h.noise_std.array().log().matrix();
     return x;
   };
-  const auto with = [n](EulerLagrangeGPHyperparameters h, const Vector& x) {
+  const auto with = [](EulerLagrangeGPHyperparameters h, const Vector& x) {
     h.part_weights = x.head(2 * n).array().exp().matrix();
     h.noise_std = x.tail(n).array().exp().matrix();
     return h;

@@ -175,7 +175,7 @@ TEST(FeatureMapBattery, PolPlusFriction) {
   BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 6001;
   opt.shapes = LogSigmas({-0.5, 0.0, 1.0});
-  opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector& s) {
+  opt.reference_kernel = [](const Vector& a, const Vector& b, const Vector& s) {
     return RefPol(a, b, n, std::exp(s[0])) + RefFriction(a, b, n, 0.1, true);
   };
   RunFeatureMapBattery(map, opt);
@@ -187,7 +187,7 @@ TEST(FeatureMapBattery, MotorPlusFriction) {
       {std::make_shared<MotorFeatureMap>(n), std::make_shared<FrictionFeatureMap>(n, 0.02)});
   BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 6002;
-  opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector&) {
+  opt.reference_kernel = [](const Vector& a, const Vector& b, const Vector&) {
     return RefMotor(a, b, n) + RefFriction(a, b, n, 0.02, true);
   };
   RunFeatureMapBattery(map, opt);
@@ -208,7 +208,7 @@ TEST(FeatureMapBattery, GravityFreePolPlusGravityBasis) {
   BatteryOptions opt = CountingBatteryOptions();
   opt.seed = 6003;
   opt.shapes = {Vector::Constant(2, 0.3), (Vector(2) << -1.0, 1.2).finished()};
-  opt.reference_kernel = [n](const Vector& a, const Vector& b, const Vector& s) {
+  opt.reference_kernel = [](const Vector& a, const Vector& b, const Vector& s) {
     const double s1 = std::exp(s[1]);
     return PolKernelGravityFree(a, b, n, std::exp(s[0])) + RefPsiSigma(a, b, n, s1) -
            RefCPsi(n, s1);

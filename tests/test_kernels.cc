@@ -182,7 +182,9 @@ TEST_P(KernelBattery, ParametersRoundTripAndClone) {
   const Vector changed = theta + RandomVector(kernel->num_parameters(), 0.2, &rng);
   const auto moved = kernel->WithParameters(changed);
   EXPECT_TRUE(moved->parameters().isApprox(changed, 1e-15));
-  EXPECT_EQ(typeid(*moved), typeid(*kernel));
+  const Kernel& moved_kernel = *moved;
+  const Kernel& original_kernel = *kernel;
+  EXPECT_EQ(typeid(moved_kernel), typeid(original_kernel));
   EXPECT_NE(moved->Evaluate(a, b), kernel->Evaluate(a, b));
   // The kernel itself is unchanged, and WithParameters at its own parameters is a copy.
   EXPECT_TRUE(kernel->parameters() == theta);

@@ -250,6 +250,10 @@ struct LearnerCase {
   int window;
   bool thread;
 };
+// The case's name in test listings (gtest would print the raw bytes of the struct, which
+// change from run to run and so would the ctest names).
+void PrintTo(const LearnerCase& c, std::ostream* os) { *os << c.name; }
+
 
 class OnlineLearnerExact : public ::testing::TestWithParam<LearnerCase> {};
 

@@ -121,6 +121,10 @@ struct Case {
   int max_batch;
   bool thread;
 };
+// The case's name in test listings (gtest would print the raw bytes of the struct, which
+// change from run to run and so would the ctest names).
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+
 
 class OnlineRegressor : public ::testing::TestWithParam<Case> {};
 
@@ -160,7 +164,9 @@ TEST_P(OnlineRegressor, EqualsTheBatchFitOfTheSameSamples) {
   RegressorGP batch(map->prior_mean(), prior_variance,
                     Vector::Constant(kJoints, o.noise_variance));
   ASSERT_EQ(batch.Fit(st), Status::kOk);
-  ExpectMatchesBatch(learner, batch, *map, test, 1e-8);
+  // With forgetting every update rescales the posterior (the prior variance ends broadened by
+  // lambda^-n, 20 times here), which adds rounding per update: 1.5e-8 seen with clang -O1.
+  ExpectMatchesBatch(learner, batch, *map, test, c.forgetting < 1.0 ? 1e-7 : 1e-8);
   const OnlineLearnerSummary s = learner.summary();
   EXPECT_EQ(s.updates, n);
   EXPECT_EQ(s.status_failures(), 0);

@@ -27,7 +27,6 @@
 namespace structgp {
 namespace {
 
-constexpr double kEps = 2.220446049250313e-16;
 constexpr double kPi = 3.141592653589793;
 
 std::mt19937_64 SeededRng(std::uint64_t seed) {
