@@ -572,6 +572,14 @@ void BindDiagnosis(py::module_& m) {
       .def("__repr__", [](const JointFinding& f) {
         return "JointFinding(joint " + std::to_string(f.joint) + ", rms " + std::to_string(f.rms) + ")";
       });
+  py::class_<AlternativeEffect>(m, "AlternativeEffect",
+                                "An effect that explains what a suggestion explains.")
+      .def_readonly("spec", &AlternativeEffect::spec)
+      .def_readonly("scope", &AlternativeEffect::scope)
+      .def_readonly("score", &AlternativeEffect::score, "its score in the suggestion's round, nats")
+      .def("__repr__", [](const AlternativeEffect& a) {
+        return "AlternativeEffect('" + a.spec + "', score " + std::to_string(a.score) + ")";
+      });
   py::class_<Suggestion>(m, "Suggestion", "An effect the model misses, with its evidence.")
       .def_readonly("effect", &Suggestion::effect)
       .def_readonly("joint", &Suggestion::joint)
@@ -598,6 +606,9 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("scope", &Suggestion::scope)
       .def_readonly("params", &Suggestion::params)
       .def_readonly("spec", &Suggestion::spec, "the text to add to the effects, e.g. 'coulomb@2'")
+      .def_readonly("alternatives", &Suggestion::alternatives,
+                    "other effects of the joint that passed every bar in its round and that it "
+                    "explains once added")
       .def_property_readonly("description", &DescribeEffect)
       .def("__repr__", [](const Suggestion& s) { return "Suggestion('" + s.spec + "', score " + std::to_string(s.score) + ")"; });
   py::class_<Refusal>(m, "Refusal", "A candidate effect that was not suggested, and why.")

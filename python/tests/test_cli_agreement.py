@@ -95,6 +95,8 @@ def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     first = diagnosis.suggestions[0]
     assert (first.effect, first.joint) == ("coulomb", 2)
     assert first.score == expected["suggestions"][0]["score"]
+    assert [(a.spec, a.scope, a.score) for a in first.alternatives] == \
+        [(a["spec"], a["scope"], a["score"]) for a in expected["suggestions"][0]["alternatives"]]
     assert [f.rms for f in diagnosis.joints] == [f["rms"] for f in expected["joints"]]
     # The refused candidates too, with the bar each failed.
     assert [(r.candidate.spec, r.bar, r.reason) for r in diagnosis.refused] == \

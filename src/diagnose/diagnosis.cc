@@ -1109,10 +1109,14 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       joint_base[static_cast<size_t>(j)] = std::move(base);
     }
   }
+  // The candidates that passed every bar in each round, with their scores (the alternatives of
+  // each round's choice are read from two consecutive rounds).
+  std::vector<std::map<int, double>> passed_in_round;
   while (static_cast<int>(picks.size()) < options.max_suggestions) {
     const int round = static_cast<int>(picks.size());
     int best = -1;
     Suggestion best_s;
+    passed_in_round.emplace_back();
     for (size_t ci = 0; ci < candidates.size(); ++ci) {
       if (!candidates[ci].alive) continue;
       Suggestion s;
@@ -1138,6 +1142,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
         continue;
       }
       eligible.emplace(static_cast<int>(ci), s);
+      passed_in_round.back().emplace(static_cast<int>(ci), s.score);
       if (best < 0 || s.score > best_s.score) {
         best = static_cast<int>(ci);
         best_s = s;
@@ -1155,6 +1160,34 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     for (auto& c : candidates) {
       if (c.effect == chosen.effect && c.joint == chosen.joint) c.alive = false;
     }
+  }
+
+  // Each choice's alternatives: the other effects of its joint (by effect and scope) that passed
+  // in its round and in no parameter set once it was added. The last choice has none when the
+  // round after it was not run (max_suggestions).
+  for (size_t r = 0; r < picks.size() && r + 1 < passed_in_round.size(); ++r) {
+    Suggestion& chosen = picks[r].second;
+    std::map<std::pair<std::string, std::string>, AlternativeEffect> alternatives;
+    std::set<std::pair<std::string, std::string>> still_passing;
+    for (const auto& [ci, score] : passed_in_round[r + 1]) {
+      const Candidate& c = candidates[static_cast<size_t>(ci)];
+      if (c.joint == chosen.joint) still_passing.emplace(c.effect, c.scope);
+    }
+    for (const auto& [ci, score] : passed_in_round[r]) {
+      const Candidate& c = candidates[static_cast<size_t>(ci)];
+      if (c.joint != chosen.joint || c.effect == chosen.effect) continue;
+      const auto key = std::make_pair(c.effect, c.scope);
+      if (still_passing.count(key)) continue;
+      auto it = alternatives.find(key);
+      if (it == alternatives.end() || score > it->second.score) {
+        alternatives[key] = AlternativeEffect{c.spec, c.scope, score};
+      }
+    }
+    for (auto& [key, a] : alternatives) chosen.alternatives.push_back(std::move(a));
+    std::stable_sort(chosen.alternatives.begin(), chosen.alternatives.end(),
+                     [](const AlternativeEffect& a, const AlternativeEffect& b) {
+                       return a.score > b.score;
+                     });
   }
 
   // ---- friction-like effects of one joint, chosen jointly ------------------------------------
@@ -1514,6 +1547,12 @@ nlohmann::ordered_json SuggestionJson(const Suggestion& s, bool calibrated) {
   js["params"] = nlohmann::ordered_json::object();
   for (const auto& [k, v] : s.params) js["params"][k] = v;
   js["spec"] = s.spec;
+  {
+    js["alternatives"] = nlohmann::ordered_json::array();
+    for (const AlternativeEffect& a : s.alternatives) {
+      js["alternatives"].push_back({{"spec", a.spec}, {"scope", a.scope}, {"score", a.score}});
+    }
+  }
   if (!calibrated) {
     for (const char* key : {"score", "inflation", "effective_samples", "p_value",
                             "adjusted_p_value", "z"}) {
@@ -1560,6 +1599,7 @@ std::string ToJson(const Diagnosis& d) {
   for (const auto& r : d.refused) {
     nlohmann::ordered_json jr = SuggestionJson(r.candidate, r.calibrated);
     jr.erase("selection");
+    jr.erase("alternatives");
     jr["refused_by"] = r.bar;
     jr["reason"] = r.reason;
     jr["after_suggestions"] = r.after_suggestions;

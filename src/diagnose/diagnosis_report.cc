@@ -125,6 +125,14 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
         s.residual_rms_before, s.residual_rms_after, unseen.c_str(), s.folds_improved,
         s.fold_rms_ratio, s.rms_before, s.rms_after,
         shell_word((existing.empty() ? "" : existing + ",") + s.spec).c_str());
+    if (!s.alternatives.empty()) {
+      std::string names;
+      for (const AlternativeEffect& a : s.alternatives) {
+        names += Format("%s%s%s (evidence %+.0f nats)", names.empty() ? "" : ", ", a.spec.c_str(),
+                        a.scope == "log" ? ", in this log only" : "", a.score);
+      }
+      os << Format("  also passed every bar, and adding it explains them: %s\n", names.c_str());
+    }
   }
   os << Refusals(d);
   return os.str();

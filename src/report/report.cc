@@ -727,6 +727,17 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
   const auto below = [](const std::string& text) {
     return "<br><span class=\"muted small\">" + text + "</span>";
   };
+  // The effects the log cannot tell well apart from a suggestion (Suggestion::alternatives).
+  const auto alternatives = [&](const Suggestion& s) {
+    if (s.alternatives.empty()) return std::string();
+    std::string text = "also explained by it: ";
+    for (std::size_t k = 0; k < s.alternatives.size(); ++k) {
+      const AlternativeEffect& a = s.alternatives[k];
+      text += (k > 0 ? ", " : "") + std::string("<code>") + Escape(a.spec) + "</code> (" +
+              FormatFixed(a.score, 1) + " nats)";
+    }
+    return below(text);
+  };
   for (std::size_t i = 0; i < d.suggestions.size(); ++i) {
     const Suggestion& s = d.suggestions[i];
     std::string confirmation;
@@ -759,7 +770,7 @@ void AppendSuggestions(const Diagnosis& d, std::string* html) {
              (s.passed_by == "held_out" ? below("on its held-out fall") : std::string()) +
              "</td><td class=\"text\">" +
              Parameters(s.params) + "</td><td class=\"text\"><code>" + Escape(s.spec) +
-             "</code></td></tr>\n";
+             "</code>" + alternatives(s) + "</td></tr>\n";
   }
   *html += "</tbody>\n</table>\n" + RefusedTable(d) + "</section>\n";
 }

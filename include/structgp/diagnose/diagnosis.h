@@ -173,6 +173,13 @@ struct JointFinding {
   std::vector<Concentration> concentrations;  ///< strongest first (at most 3)
 };
 
+/// An effect that explains what a suggestion explains (Suggestion::alternatives).
+struct AlternativeEffect {
+  std::string spec;   ///< as Suggestion::spec, e.g. "offset@2"
+  std::string scope;  ///< as Suggestion::scope
+  double score = 0;   ///< its calibrated score, nats, in the round the suggestion was chosen in
+};
+
 struct Suggestion {
   std::string effect;   ///< a registered effect name ("coulomb")
   int joint = 0;        ///< 1-based
@@ -236,6 +243,13 @@ struct Suggestion {
   /// The text to add to --effects, e.g. "cogging@3:period=0.3": ParseEffectList(spec) gives
   /// back this effect on this joint, with these params.
   std::string spec;
+  /// Other effects of this joint that passed every bar in the round this one was chosen in and
+  /// pass no more once it is added: they explain the same part of the log. A score close to
+  /// this one's says the log cannot tell them apart (on a joint that hardly moves, a spring's
+  /// torque k q is nearly a constant, as an offset is). Best score first; empty for a
+  /// suggestion chosen with the joint's other friction-like effects (selection "joint") and
+  /// for the last one when max_suggestions stopped the search after it.
+  std::vector<AlternativeEffect> alternatives;
 };
 
 /// A candidate that was not suggested, and the bar that refused it (Diagnosis::refused): the
