@@ -1547,11 +1547,9 @@ nlohmann::ordered_json SuggestionJson(const Suggestion& s, bool calibrated) {
   js["params"] = nlohmann::ordered_json::object();
   for (const auto& [k, v] : s.params) js["params"][k] = v;
   js["spec"] = s.spec;
-  {
-    js["alternatives"] = nlohmann::ordered_json::array();
-    for (const AlternativeEffect& a : s.alternatives) {
-      js["alternatives"].push_back({{"spec", a.spec}, {"scope", a.scope}, {"score", a.score}});
-    }
+  js["alternatives"] = nlohmann::ordered_json::array();
+  for (const AlternativeEffect& a : s.alternatives) {
+    js["alternatives"].push_back({{"spec", a.spec}, {"scope", a.scope}, {"score", a.score}});
   }
   if (!calibrated) {
     for (const char* key : {"score", "inflation", "effective_samples", "p_value",
