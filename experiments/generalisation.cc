@@ -25,9 +25,9 @@
 // simulated chain (sim::ToUrdf -> RigidBodyChain, armature included) plus the true friction
 // bases: what a model that knows the kinematics and the effect bases gets; every other model is
 // fitted by the library's workflow with the CLI's defaults (FitModel, type-II maximum
-// likelihood). Variants of kernel models: "/joint" one GP per joint with its own
-// hyper-parameters, "/chain" the same with joint J's PolChainKernel for pol, "/chain1" joint 1's
-// on every joint. "lagk" is the library's EulerLagrangeGP (one GP for all joints on the
+// likelihood). Variants: "/joint" each joint its own hyper-parameters (FitOptions::per_joint:
+// pol, motor, rbf, rbfs), "/chain" one GP per joint with joint J's PolChainKernel for pol,
+// "/chain1" joint 1's on every joint. "lagk" is the library's EulerLagrangeGP (one GP for all joints on the
 // Euler-Lagrange kernel, FitEulerLagrangeGP), "/link" with one weight per link's energies; its
 // posterior is exact on --lagk-rows rows or, with --lagk-inducing=P, the DTC approximation
 // through P inducing states on --lagk-rows rows, chosen to cover the states (or, with
@@ -397,19 +397,19 @@ std::string Join(const Vector& v, const char* format) {
   return out;
 }
 
-// Variant "/joint" of a kernel model: one single-output GP per joint, each with its own kernel
-// parameters, noise and scale by type-II maximum likelihood (the library's evidence options and
-// row limits); "/chain": the same with pol's kernel replaced by joint J's PolChainKernel;
-// "/chain1": by joint 1's on every joint (only q_1 dropped from the inertial and Coriolis terms).
+// Variant "/chain" of pol: one single-output GP per joint, each with its own kernel parameters,
+// noise and scale by type-II maximum likelihood (the library's evidence options and row limits),
+// pol's kernel replaced by joint J's PolChainKernel; "/chain1": by joint 1's on every joint (only
+// q_1 dropped from the inertial and Coriolis terms). ("/joint", each joint its own
+// hyper-parameters with the kernel unchanged, is the product's FitOptions::per_joint.)
 std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string& variant,
                                         const Case& c, Row* row) {
-  const bool chain = variant != "joint";
   const int N = c.train.num_joints();
   RobotModelOptions model_options;
   model_options.max_explicit_features = 1;  // pol as its kernel at every N
   const RobotModel model(spec, N, model_options);
   if (model.kernel() == nullptr) {
-    throw std::invalid_argument("--models: /joint and /chain need a kernel model (pol, rbf, rbfs)");
+    throw std::invalid_argument("--models: /chain needs pol as its kernel");
   }
   const Kernel& full = *model.kernel();
   const FitOptions defaults;
@@ -426,14 +426,11 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
   }
   std::string notes;
   for (int j = 0; j < N; ++j) {
-    std::unique_ptr<Kernel> kernel = full.Clone();
-    if (chain) {
-      const PolChainKernel joint_kernel(N, variant == "chain1" ? 1 : j + 1);
-      const auto* sum = dynamic_cast<const SumKernel*>(&full);
-      kernel = sum ? std::make_unique<SumKernel>(
-                         std::vector<const Kernel*>{&joint_kernel, &sum->part(1)})
-                   : joint_kernel.Clone();
-    }
+    const PolChainKernel joint_kernel(N, variant == "chain1" ? 1 : j + 1);
+    const auto* sum = dynamic_cast<const SumKernel*>(&full);
+    const std::unique_ptr<Kernel> kernel =
+        sum ? std::make_unique<SumKernel>(std::vector<const Kernel*>{&joint_kernel, &sum->part(1)})
+            : joint_kernel.Clone();
     Hyperparameters h = start;
     h.log_output_scale = start.log_output_scale.segment(j, 1);
     const MaximumLikelihoodSummary s =
@@ -553,8 +550,8 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     ModelSpec spec = ParseModelSpec(spec_text);
     if (!c.friction) spec.friction = false;  // the models are told which effects there are
     row.model = ToString(spec) + (variant.empty() ? "" : "/" + variant);
-    if (variant == "joint" || variant == "chain" || variant == "chain1") {
-      if (spec.base != BaseModel::kPol && variant != "joint") {
+    if (variant == "chain" || variant == "chain1") {
+      if (spec.base != BaseModel::kPol) {
         throw std::invalid_argument("--models: /chain is a variant of pol");
       }
       predictions = PerJointKernels(spec, variant, c, &row);
@@ -563,6 +560,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
       return row;
     }
     FitOptions options;
+    options.per_joint = variant == "joint";
     options.evidence.prior.family = lagk_options.prior.family;  // --prior, for every search
     options.num_threads = lagk_options.num_threads;              // --threads
     options.model.batch.num_threads = lagk_options.num_threads;

@@ -841,6 +841,42 @@ TEST(CliUserLogs, SeveralTrajectoriesInOneFileFitPredictAndDiagnose) {
   EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
 }
 
+// Per-joint hyper-parameters from the command line: fit (text and JSON), predict, evaluate and
+// diagnose use each joint's own set; replay asks for the shared set; lag refuses them.
+TEST(CliUserLogs, PerJointHyperparametersFitPredictEvaluateAndDiagnose) {
+  TempDir dir;
+  const UserLogs logs = MakeUserLogs(dir);
+  const std::string model = dir.File("m.json"), json = dir.File("fit.json");
+  const Result fit = RunCli(dir, {"fit", "--data", logs.trajectories, "--model", "pol",
+                                  "--per-joint", "--out", model, "--json", json, "--quiet"});
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  EXPECT_TRUE(Contains(fit.out, "one set of hyper-parameters per joint")) << fit.out;
+  const Json summary = Json::parse(ReadFile(json));
+  EXPECT_TRUE(summary["per_joint"].get<bool>());
+  EXPECT_EQ(summary["summary"]["joints"].size(), 2u);
+  EXPECT_EQ(Json::parse(ReadFile(model))["version"], 3);
+  const Result predict = RunCli(
+      dir, {"predict", "--model", model, "--data", logs.trajectories, "--out", dir.File("p.csv")});
+  EXPECT_EQ(predict.code, 0) << predict.err;
+  const Result evaluate = RunCli(dir, {"evaluate", "--model", model, "--data", logs.trajectories});
+  EXPECT_EQ(evaluate.code, 0) << evaluate.err;
+  const Result diagnose = RunCli(dir, {"diagnose", "--model", model, "--data", logs.trajectories,
+                                       "--json", dir.File("f.json")});
+  ASSERT_EQ(diagnose.code, 0) << diagnose.err;
+  const Json findings = Json::parse(ReadFile(dir.File("f.json")));
+  ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
+  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
+  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+
+  const Result replay = RunCli(dir, {"replay", "--data", logs.trajectories, "--model", model});
+  EXPECT_EQ(replay.code, 2);
+  EXPECT_TRUE(Contains(replay.err, "per-joint")) << replay.err;
+  const Result lag = RunCli(dir, {"fit", "--data", logs.trajectories, "--model", "lag",
+                                  "--per-joint", "--out", dir.File("lag.json")});
+  EXPECT_EQ(lag.code, 2);
+  EXPECT_TRUE(Contains(lag.err, "shares its parameters across joints")) << lag.err;
+}
+
 // ---- replay -------------------------------------------------------------------------------
 
 // From a fitted model and from zero, on a log of three trajectories (time starting again):

@@ -424,10 +424,13 @@ TEST_F(ModelFileErrors, OtherJsonIsNotAModelFile) {
 }
 
 TEST_F(ModelFileErrors, NewerVersion) {
-  ASSERT_EQ(kModelFileVersion, 2);
-  EXPECT_EQ(Json::parse(text_)["version"], 2);
-  ExpectError(Edited([](Json* d) { (*d)["version"] = 3; }),
-              "unsupported model file version 3: this build reads versions 1 to 2 (the file was "
+  ASSERT_EQ(kModelFileVersion, 3);
+  // A model whose joints share their hyper-parameters is written as version 2 (per-joint
+  // models as 3: tests/test_per_joint.cc).
+  EXPECT_EQ(Json::parse(text_)["version"], kSharedModelFileVersion);
+  EXPECT_EQ(kSharedModelFileVersion, 2);
+  ExpectError(Edited([](Json* d) { (*d)["version"] = 4; }),
+              "unsupported model file version 4: this build reads versions 1 to 3 (the file was "
               "written by a newer structgp)");
   ExpectError(Edited([](Json* d) { (*d)["version"] = 0; }), "unsupported model file version 0");
 }

@@ -78,6 +78,24 @@ def test_a_fit_from_python_is_the_programs_fit(demo, cli_model):
     assert summary.to_dict()["summary"]["termination"] == summary.termination
 
 
+def test_a_per_joint_fit_from_python_is_the_programs(cli, demo, tmp_path):
+    path = tmp_path / "per_joint.json"
+    run(cli, "fit", "--data", demo / "train.csv", "--model", "pol+fri", "--per-joint",
+        "--out", path, "--quiet")
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model(base="pol", friction=True)
+    model.fit(train.X, train.Y, train.t, per_joint=True)
+    assert model.per_joint
+    reference = structgp.Model.load(str(path))
+    assert reference.per_joint
+    np.testing.assert_allclose(model.predict(test.X), reference.predict(test.X),
+                               rtol=1e-10, atol=1e-10)
+    assert len(model.summary.to_dict()["summary"]["joints"]) == 2
+    shared = structgp.Model(base="pol", friction=True).fit(train.X, train.Y, train.t)
+    assert not shared.per_joint
+
+
 def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     findings = tmp_path / "findings.json"
     run(cli, "diagnose", "--model", demo / "model_before.json", "--data", demo / "train.csv",

@@ -53,6 +53,10 @@ class FitCommand : public Command {
                     "the held-out check")
         ->check(CLI::Range(0, 20))
         ->capture_default_str();
+    cmd->add_flag("--per-joint", options_.per_joint,
+                  "Each joint its own hyper-parameters (shape, block scales, noise, output "
+                  "scale), searched on its torque alone: pol, motor, rbf, rbfs; about N times "
+                  "the search time; the online learner (replay) needs the shared set");
     cmd->add_flag("--no-check", no_check_,
                   "Skip the check of the hyper-parameters on held-out blocks of the data");
     cmd->add_option("--folds", options_.cv_folds, "Contiguous folds of --hyper cv")

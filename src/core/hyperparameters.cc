@@ -1,6 +1,8 @@
 #include "structgp/core/hyperparameters.h"
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "structgp/core/validate.h"
 
@@ -11,7 +13,15 @@ double Hyperparameters::noise_variance() const { return std::exp(2.0 * log_noise
 Vector Hyperparameters::output_scales() const { return log_output_scale.array().exp(); }
 
 Vector Hyperparameters::noise_stds() const {
-  return (log_output_scale.array() + log_noise_std).exp().matrix();
+  if (per_output.empty()) return (log_output_scale.array() + log_noise_std).exp().matrix();
+  Vector stds(static_cast<Eigen::Index>(per_output.size()));
+  for (size_t j = 0; j < per_output.size(); ++j) {
+    const Hyperparameters& h = per_output[j];
+    stds[static_cast<Eigen::Index>(j)] =
+        h.log_output_scale.size() == 1 ? std::exp(h.log_output_scale[0] + h.log_noise_std)
+                                       : std::exp(h.log_noise_std);
+  }
+  return stds;
 }
 
 void Hyperparameters::Validate(Eigen::Index num_shape, Eigen::Index num_blocks,
@@ -23,6 +33,17 @@ void Hyperparameters::Validate(Eigen::Index num_shape, Eigen::Index num_blocks,
   RequireFinite(what + ".log_block_scale", log_block_scale);
   RequireFinite(what + ".log_output_scale", log_output_scale);
   RequireInRange(what + ".log_noise_std", log_noise_std, -50.0, 50.0);
+  if (per_output.empty()) return;
+  RequireSize(what + ".per_output", static_cast<Eigen::Index>(per_output.size()), num_outputs,
+              "entries (one per output, or none)");
+  for (size_t j = 0; j < per_output.size(); ++j) {
+    const std::string name = what + ".per_output[" + std::to_string(j) + "]";
+    if (!per_output[j].per_output.empty()) {
+      throw std::invalid_argument(name + ".per_output: expected none, got " +
+                                  std::to_string(per_output[j].per_output.size()));
+    }
+    per_output[j].Validate(num_shape, num_blocks, 1, name);
+  }
 }
 
 }  // namespace structgp

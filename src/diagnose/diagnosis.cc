@@ -480,7 +480,38 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   std::shared_ptr<const FeatureMap> base_map = model.feature_map();
   Hyperparameters base_hyper = model.hyperparameters();
   Diagnosis out;
-  if (base_map) {
+  if (model.per_joint()) {
+    if (only_joint < 1) {
+      throw std::logic_error("Diagnose: a model with per-joint hyper-parameters is diagnosed per "
+                             "joint");
+    }
+    // The joint's own set; each column keeps its joint's output scale (only this joint's
+    // column is read).
+    const Hyperparameters& own = base_hyper.per_output[static_cast<size_t>(only_joint - 1)];
+    Vector scales(N);
+    for (int j = 0; j < N; ++j) {
+      scales[j] = base_hyper.per_output[static_cast<size_t>(j)].log_output_scale[0];
+    }
+    if (base_map) {
+      Hyperparameters h = own;
+      h.log_output_scale = scales;
+      base_hyper = h;
+      out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) +
+                     ") with each joint's own hyper-parameters, one joint at a time";
+    } else {
+      const std::unique_ptr<Kernel> kernel = model.kernel()->WithParameters(own.shape);
+      const Matrix Z =
+          SelectInducingStates(*kernel, X, std::min(options.nystrom_features, m / 2));
+      base_map = std::make_shared<NystromFeatureMap>(*kernel, Z);
+      Hyperparameters h = DefaultHyperparameters(*base_map, N);
+      h.log_noise_std = own.log_noise_std;
+      h.log_output_scale = scales;
+      base_hyper = h;
+      out.features = "Nystrom features of each joint's own kernel on " +
+                     std::to_string(Z.rows()) + " inducing states chosen among the rows (D = " +
+                     std::to_string(base_map->dim()) + "), one joint at a time";
+    }
+  } else if (base_map) {
     out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) + ")";
   } else if (model.regressor_map()) {
     if (only_joint < 1) throw std::logic_error("Diagnose: a regressor model is diagnosed per joint");
@@ -1476,11 +1507,12 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   const Vector& ts = with_training ? tu : t;
   try {
     Diagnosis out;
-    if (!model.regressor_map() && !(model.fitted() && model.gp().euler_lagrange() != nullptr)) {
+    if (!model.regressor_map() && !(model.fitted() && model.gp().euler_lagrange() != nullptr) &&
+        !model.per_joint()) {
       out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 0, 1);
     } else {
       // One joint at a time against its own row of the regressor (lagk: Nystrom features of its
-      // torque); the suggestions merged.
+      // torque; per-joint hyper-parameters: its own prior); the suggestions merged.
       out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 1, N);
       for (int j = 2; j <= N && out.status == DiagnosisStatus::kOk; ++j) {
         Diagnosis joint = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, j, N);

@@ -110,6 +110,7 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
   summary.spec = model.spec();
   FitOptions fit_options = options.fit;
   fit_options.model = model.options();
+  fit_options.per_joint = model.per_joint();
   // The model of the current round: the one given, then each refit.
   std::optional<RobotModel> refitted;
   auto finish = [&](DiagnosisLoopTermination termination, std::string message) {

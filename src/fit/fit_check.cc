@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -67,10 +68,15 @@ Vector BandCoverage(const ConstMatrixRef& mean, const ConstMatrixRef& latent_std
 
 FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hyper,
                               const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                              const FitCheckOptions& options) {
+                              const FitCheckOptions& options, int only_joint) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
   const int N = model.num_joints();
+  if (only_joint < 0 || only_joint > N) {
+    throw std::invalid_argument("CheckOnHeldOutBlocks: only_joint: expected 0..." +
+                                std::to_string(N) + ", got " + std::to_string(only_joint));
+  }
+  const auto counts = [only_joint](int j) { return only_joint == 0 || j + 1 == only_joint; };
   RequireSize("CheckOnHeldOutBlocks X", X.cols(), model.input_dim(), "columns");
   RequireSize("CheckOnHeldOutBlocks Y", Y.cols(), N, "columns (joints)");
   RequireSize("CheckOnHeldOutBlocks Y", Y.rows(), X.rows(), "rows (as in X)");
@@ -113,6 +119,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     }
     for (int i = 0; i < held; ++i) {
       for (int j = 0; j < N; ++j) {
+        if (!counts(j)) continue;
         const double mu = mean(i, j);
         const double margin = options.range_margin * span[j];
         const double outside =
@@ -141,6 +148,10 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   check.ran = true;
   check.coverage.resize(N);
   for (int j = 0; j < N; ++j) {
+    if (!counts(j)) {
+      check.coverage[j] = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
     check.coverage[j] = static_cast<double>(covered[static_cast<size_t>(j)]) / check.rows;
     const double fraction = static_cast<double>(absurd[static_cast<size_t>(j)]) / check.rows;
     if (fraction > check.worst_fraction) {
@@ -151,7 +162,7 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     }
   }
   double largest = 0.0;
-  int largest_joint = 1;
+  int largest_joint = only_joint > 0 ? only_joint : 1;
   for (int j = 0; j < N; ++j) {
     if (excursion[static_cast<size_t>(j)] > largest) {
       largest = excursion[static_cast<size_t>(j)];
@@ -166,7 +177,9 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
              skipped > 0 ? Format(", %d not fitted", skipped).c_str() : "");
   std::string coverage_text;
   for (int j = 0; j < N; ++j) {
-    coverage_text += Format("%s%.0f%%", j == 0 ? "" : " ", 100.0 * check.coverage[j]);
+    if (!counts(j)) continue;
+    coverage_text +=
+        Format("%s%.0f%%", coverage_text.empty() ? "" : " ", 100.0 * check.coverage[j]);
   }
   if (check.passed) {
     check.message = Format(
@@ -182,7 +195,9 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
         options.range_margin, check.worst_excursion, 100.0 * check.worst_confident_fraction,
         options.confidence_sigmas);
   }
-  check.message += "; 2 sigma band covers " + coverage_text + " of the held-out torques per joint";
+  check.message += "; 2 sigma band covers " + coverage_text +
+                   (only_joint > 0 ? Format(" of joint %d's held-out torques", only_joint)
+                                   : std::string(" of the held-out torques per joint"));
   return check;
 }
 

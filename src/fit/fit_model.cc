@@ -51,7 +51,7 @@ class Fit {
   bool Report(const std::string& message, int iteration = 0, double nle = kNaN) {
     if (!options_.callback) return true;
     FitProgress p;
-    p.message = message;
+    p.message = joint_ > 0 && !message.empty() ? Format("joint %d: ", joint_) + message : message;
     p.iteration = iteration;
     p.negative_log_evidence = nle;
     p.seconds = seconds();
@@ -135,8 +135,13 @@ class Fit {
 
   const FitOptions& options() const { return options_; }
   RobotModel* model() { return model_; }
+  // The joint (1-based) whose own hyper-parameters are searched (FitOptions::per_joint), 0 for
+  // a search of the shared set.
+  int joint() const { return joint_; }
+  void set_joint(int joint) { joint_ = joint; }
   FitSummary& summary() { return summary_; }
   FitTermination search_end() const { return search_end_; }
+  void set_search_end(FitTermination end) { search_end_ = end; }
   const std::string& search_message() const { return search_message_; }
   void set_search_message(std::string m) { search_message_ = std::move(m); }
 
@@ -148,10 +153,26 @@ class Fit {
   FitTermination search_end_ = FitTermination::kConverged;
   std::string search_message_;
   bool aborted_ = false;
+  int joint_ = 0;
 };
 
 using Search =
     std::function<MaximumLikelihoodSummary(const MaximumLikelihoodOptions&, Hyperparameters*)>;
+
+// One joint's set (one output scale) as a set shared by all N joints of Y (m x N): its output
+// scale on `joint` (1-based), each other joint's torque RMS on the others. The held-out check
+// of that joint's candidates reads that joint alone, and a shared set fits every column with
+// one factor.
+Hyperparameters SharedFor(const Hyperparameters& own, int joint, const ConstMatrixRef& Y) {
+  Hyperparameters shared = own;
+  shared.log_output_scale.resize(Y.cols());
+  for (Eigen::Index j = 0; j < Y.cols(); ++j) {
+    const double rms = Y.rows() > 0 ? std::sqrt(Y.col(j).squaredNorm() / Y.rows()) : 1.0;
+    shared.log_output_scale[j] = std::log(rms > 1e-12 ? rms : 1.0);
+  }
+  shared.log_output_scale[joint - 1] = own.log_output_scale[0];
+  return shared;
+}
 
 // The evidence search from *h (the data-derived start, also the prior's centre), then the
 // held-out check of its runs, best objective first; when none passes, the search again from
@@ -186,8 +207,12 @@ bool SearchAndCheck(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters*
     const std::vector<int> order = s.StartsByObjective();
     for (size_t i = 0; i < order.size(); ++i) {
       const int k = order[i];
-      const FitCheck c = CheckOnHeldOutBlocks(
-          *fit->model(), s.starts[static_cast<size_t>(k)].hyperparameters, X, Y, options.check);
+      const Hyperparameters& candidate = s.starts[static_cast<size_t>(k)].hyperparameters;
+      const FitCheck c =
+          fit->joint() > 0
+              ? CheckOnHeldOutBlocks(*fit->model(), SharedFor(candidate, fit->joint(), Y),
+                                     X, Y, options.check, fit->joint())
+              : CheckOnHeldOutBlocks(*fit->model(), candidate, X, Y, options.check);
       if (i == 0) best_check = c;
       if (!fit->Report(Format("start %d: %s", k + 1, c.message.c_str()))) return false;
       if (!c.ran || c.passed) {
@@ -482,6 +507,101 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   return true;
 }
 
+// FitOptions::per_joint: each joint's own search, one after the other, on its torque alone
+// (Yr's column; Y, all torques, for the held-out check of its candidates, which reads that
+// joint), each joint's summary kept in the fit's summary and merged into it. *h holds the
+// data-derived shared start on entry; on success its per_output holds the joints' sets.
+bool PerJointSearch(const Matrix& X, const Matrix& Y, const Matrix& Yr, const ConstVectorRef& t,
+                    bool kernel_model, Fit* fit, Hyperparameters* h, std::string* failure) {
+  const FitOptions& options = fit->options();
+  FitSummary& summary = fit->summary();
+  const int N = static_cast<int>(Y.cols());
+  std::vector<Hyperparameters> sets;
+  double initial = 0.0, final_evidence = 0.0, final_prior = 0.0, cv_nmse = 0.0;
+  std::string messages;
+  bool map = false;
+  for (int j = 0; j < N; ++j) {
+    Fit joint(options, fit->model());
+    joint.set_joint(j + 1);
+    Hyperparameters own = *h;
+    own.log_output_scale = h->log_output_scale.segment(j, 1);
+    const Matrix Yr_j = Yr.col(j);
+    bool go_on = true;
+    switch (options.method) {
+      case HyperparameterMethod::kEvidence:
+        go_on = kernel_model ? KernelByEvidence(X, Y, Yr_j, &joint, &own, failure)
+                             : FeatureMapByEvidence(X, Y, Yr_j, &joint, &own, failure);
+        break;
+      case HyperparameterMethod::kCrossValidation:
+        go_on = FeatureMapByCrossValidation(X, Yr_j, t, &joint, &own, failure);
+        break;
+      case HyperparameterMethod::kFixed:
+        joint.summary().method_description =
+            "fixed defaults (output scale = torque RMS, noise 10% of it)";
+        joint.set_search_message("fixed hyper-parameters: nothing to search");
+        break;
+    }
+    if (joint.aborted()) {
+      fit->MarkAborted();
+      return false;
+    }
+    if (!go_on) {
+      *failure = Format("joint %d: ", j + 1) + *failure;
+      return false;
+    }
+    FitSummary js = joint.Finish(joint.search_end(), joint.search_message());
+    js.hyperparameter_seconds = js.total_seconds;
+    const std::string name = Format("joint %d: ", j + 1);
+    summary.notes.push_back(name + js.method_description);
+    for (const std::string& note : js.notes) summary.notes.push_back(name + note);
+    for (const std::string& warning : js.warnings) summary.warnings.push_back(name + warning);
+    for (const std::string& bound : js.at_bounds) {
+      summary.at_bounds.push_back(bound + Format("@%d", j + 1));
+    }
+    summary.iterations += js.iterations;
+    summary.num_evaluations += js.num_evaluations;
+    summary.prior_tightenings = std::max(summary.prior_tightenings, js.prior_tightenings);
+    summary.hyperparameter_rows = js.hyperparameter_rows;
+    summary.cv_candidates = js.cv_candidates;
+    initial += js.initial_negative_log_evidence;
+    final_evidence += js.final_negative_log_evidence;
+    final_prior += js.final_negative_log_prior;
+    cv_nmse += js.cv_mean_nmse / N;
+    map = map || js.final_negative_log_prior != 0.0;
+    if (js.termination != FitTermination::kConverged &&
+        fit->search_end() == FitTermination::kConverged) {
+      fit->set_search_end(js.termination);
+    }
+    messages += (messages.empty() ? "" : "; ") + name + js.message;
+    summary.joints.push_back(std::move(js));
+    sets.push_back(std::move(own));
+  }
+  h->per_output = std::move(sets);
+  fit->set_search_message(messages);
+  switch (options.method) {
+    case HyperparameterMethod::kEvidence:
+      summary.initial_negative_log_evidence = initial;
+      summary.final_negative_log_evidence = final_evidence;
+      summary.final_negative_log_prior = final_prior;
+      summary.method_description =
+          std::string("type-II maximum likelihood") + (map ? kMapPhrase : "") +
+          ", one set of hyper-parameters per joint";
+      break;
+    case HyperparameterMethod::kCrossValidation:
+      summary.cv_mean_nmse = cv_nmse;
+      summary.method_description = Format(
+          "blocked %d-fold cross-validation, one set of hyper-parameters per joint (mean "
+          "held-out nMSE %.4g)",
+          options.cv_folds, cv_nmse);
+      break;
+    case HyperparameterMethod::kFixed:
+      summary.method_description =
+          "fixed defaults (output scale = torque RMS, noise 10% of it), one set per joint";
+      break;
+  }
+  return true;
+}
+
 void CheckData(const RobotModel& model, const ConstMatrixRef& states, const ConstMatrixRef& torques,
                const ConstVectorRef& t) {
   const int N = model.num_joints();
@@ -730,6 +850,11 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
         " joints runs in function space (use type-II maximum likelihood or fixed "
         "hyper-parameters)");
   }
+  if (options.per_joint && (regressor_model || euler_model)) {
+    throw std::invalid_argument("per-joint hyper-parameters: model '" + ToString(model->spec()) +
+                                "' shares its parameters across joints (pol, motor, rbf and "
+                                "rbfs have one set per joint)");
+  }
   const Matrix X = ModelInputs(*model, states, t);
   // Y: the torques, which RobotModel::Fit and the held-out check take; Yr: what the model's
   // GP learns, the torques less the prior mean of rbd+<base>, the targets of the search.
@@ -746,7 +871,9 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
   if (options.output_scaling == OutputScaling::kUnit) h.log_output_scale.setZero();
   std::string failure;
   bool go_on = true;
-  switch (options.method) {
+  if (options.per_joint) {
+    go_on = PerJointSearch(X, Y, Yr, t, kernel_model, &fit, &h, &failure);
+  } else switch (options.method) {
     case HyperparameterMethod::kEvidence:
       go_on = euler_model       ? EulerLagrangeByEvidence(X, Yr, &fit, &h, &failure)
               : regressor_model ? RegressorByEvidence(X, Y, Yr, &fit, &h, &failure)
@@ -772,8 +899,10 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
       fit.set_search_message("fixed hyper-parameters: nothing to search");
       break;
   }
+  // Each joint's search checked its own candidates; the check of all joints with their sets
+  // gives the coverage of the model as fitted.
   if (go_on && !fit.aborted() &&
-      (options.method != HyperparameterMethod::kEvidence || euler_model) &&
+      (options.method != HyperparameterMethod::kEvidence || euler_model || options.per_joint) &&
       options.check.enabled) {
     summary.check = CheckOnHeldOutBlocks(*model, h, X, Y, options.check);
     if (summary.check.ran && !summary.check.passed) {
@@ -917,12 +1046,42 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
        << ")\n";
   } else {
     os << "features     none: kernel model (" << ToString(gp.form()) << " form, "
-       << gp.function_space()->size() << " stored points)\n";
+       << gp.fit_rows() << " stored points)\n";
   }
   ReportSearch(summary, os);
   std::vector<std::vector<std::string>> rows = {{"parameter", "value"}};
   const Hyperparameters& h = model.hyperparameters();
-  if (model.feature_map()) {
+  if (model.per_joint()) {
+    // One column per joint, each its own set (one output scale).
+    rows[0].resize(1);
+    for (int j = 1; j <= N; ++j) rows[0].push_back(Format("tau%d", j));
+    std::vector<std::string> names;
+    std::vector<Vector> values;
+    for (const Hyperparameters& own : h.per_output) {
+      if (model.feature_map()) {
+        FreeHyperparameters all;
+        all.output_scales = true;
+        const HyperparameterLayout layout(*model.feature_map(), 1, all);
+        names = layout.names();
+        for (std::string& name : names) {
+          if (name.rfind("log_output_scale", 0) == 0) name = "log_output_scale";
+        }
+        values.push_back(layout.Flatten(own));
+      } else {
+        names = model.kernel()->parameter_names();
+        names.push_back("log_noise_std");
+        names.push_back("log_output_scale");
+        Vector v(own.shape.size() + 2);
+        v << own.shape, own.log_noise_std, own.log_output_scale[0];
+        values.push_back(v);
+      }
+    }
+    for (size_t i = 0; i < names.size(); ++i) {
+      std::vector<std::string> row = {names[i]};
+      for (const Vector& v : values) row.push_back(Number(v[static_cast<Eigen::Index>(i)]));
+      rows.push_back(std::move(row));
+    }
+  } else if (model.feature_map()) {
     FreeHyperparameters all;
     all.output_scales = true;
     const HyperparameterLayout layout(*model.feature_map(), N, all);
@@ -957,7 +1116,7 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   os << "  (sigma_n times the output scale)\n";
   os << "log marginal likelihood " << Format("%.6g", gp.LogMarginalLikelihood()) << " nats\n";
   const auto names = model.ParametricFeatureNames();
-  if (gp.weight_space() != nullptr && !names.empty()) {
+  if (model.has_components() && !names.empty()) {
     os << "coefficients (posterior mean +- std, per joint torque):\n";
     std::vector<std::vector<std::string>> coef = {{"feature"}};
     for (int j = 1; j <= N; ++j) coef[0].push_back(Format("tau%d", j));
@@ -974,30 +1133,21 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
   return os.str();
 }
 
-std::string ToJson(const RobotModel& model, const FitSummary& summary) {
-  using Json = nlohmann::ordered_json;
-  // JSON has no NaN or infinity: such a number is written as null.
-  auto number = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
-  auto numbers = [&number](const Vector& v) {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+// JSON has no NaN or infinity: such a number is written as null.
+Json JsonNumber(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
+
+// Every field of a FitSummary, with each joint's own summary under "joints" (per_joint).
+Json SummaryJson(const FitSummary& summary) {
+  auto number = [](double v) { return JsonNumber(v); };
+  auto numbers = [](const Vector& v) {
     Json list = Json::array();
-    for (Eigen::Index k = 0; k < v.size(); ++k) list.push_back(number(v[k]));
+    for (Eigen::Index k = 0; k < v.size(); ++k) list.push_back(JsonNumber(v[k]));
     return list;
   };
-  Json j;
-  j["model"] = ModelLabel(model.spec());
-  j["num_joints"] = model.num_joints();
-  j["form"] = model.fitted() ? Json(ToString(model.gp().form())) : Json(nullptr);
-  if (model.regressor_map()) {
-    j["size"] = {{"parameters", model.regressor_map()->dim()}};
-  } else if (model.feature_map()) {
-    j["size"] = {{"features", model.feature_map()->dim()}};
-  } else if (model.fitted() && model.gp().euler_lagrange() != nullptr) {
-    const EulerLagrangeGP& euler = *model.gp().euler_lagrange();
-    j["size"] = {{"rows", euler.inputs().rows()},
-                 {"inducing_states", euler.dtc() ? euler.states().rows() : 0}};
-  } else {
-    j["size"] = Json::object();
-  }
   Json s;
   s["termination"] = ToString(summary.termination);
   s["usable"] = summary.IsUsable();
@@ -1041,7 +1191,32 @@ std::string ToJson(const RobotModel& model, const FitSummary& summary) {
   s["model_rows"] = summary.model_rows;
   s["hyperparameter_seconds"] = number(summary.hyperparameter_seconds);
   s["total_seconds"] = number(summary.total_seconds);
-  j["summary"] = s;
+  s["joints"] = Json::array();
+  for (const FitSummary& joint : summary.joints) s["joints"].push_back(SummaryJson(joint));
+  return s;
+}
+
+}  // namespace
+
+std::string ToJson(const RobotModel& model, const FitSummary& summary) {
+  auto number = [](double v) { return JsonNumber(v); };
+  Json j;
+  j["model"] = ModelLabel(model.spec());
+  j["num_joints"] = model.num_joints();
+  j["form"] = model.fitted() ? Json(ToString(model.gp().form())) : Json(nullptr);
+  if (model.regressor_map()) {
+    j["size"] = {{"parameters", model.regressor_map()->dim()}};
+  } else if (model.feature_map()) {
+    j["size"] = {{"features", model.feature_map()->dim()}};
+  } else if (model.fitted() && model.gp().euler_lagrange() != nullptr) {
+    const EulerLagrangeGP& euler = *model.gp().euler_lagrange();
+    j["size"] = {{"rows", euler.inputs().rows()},
+                 {"inducing_states", euler.dtc() ? euler.states().rows() : 0}};
+  } else {
+    j["size"] = Json::object();
+  }
+  j["per_joint"] = model.fitted() && model.per_joint();
+  j["summary"] = SummaryJson(summary);
   if (summary.IsUsable() && model.fitted()) {
     j["log_marginal_likelihood"] = number(model.gp().LogMarginalLikelihood());
     const Hyperparameters& h = model.hyperparameters();
@@ -1049,9 +1224,7 @@ std::string ToJson(const RobotModel& model, const FitSummary& summary) {
     for (double value : h.noise_stds()) noise.push_back(number(value));
     j["noise_std"] = noise;
     j["coefficients"] = Json::array();
-    const bool has_coefficients =
-        model.gp().weight_space() != nullptr || model.gp().regressor() != nullptr;
-    if (has_coefficients) {
+    if (model.has_components()) {
       for (const FeatureCoefficient& c : model.Coefficients()) {
         j["coefficients"].push_back(
             {{"name", c.name}, {"joint", c.joint}, {"value", number(c.value)}, {"std", number(c.std)}});

@@ -360,6 +360,51 @@ Json ParseJson(const std::string& text, const std::string& path) {
   }
 }
 
+// One set of hyper-parameters as the file keeps it: a kernel's parameters (Hyperparameters::
+// shape of a kernel model) in "kernel_parameters" and an empty "shape", as it always has.
+Json HyperparametersJson(const Hyperparameters& h, bool kernel_model, const std::string& what) {
+  RequireFiniteForSave(what + ".shape", h.shape);
+  RequireFiniteForSave(what + ".log_block_scale", h.log_block_scale);
+  RequireFiniteForSave(what + ".log_output_scale", h.log_output_scale);
+  if (!std::isfinite(h.log_noise_std)) {
+    throw std::invalid_argument("SaveModel: " + what + ".log_noise_std is not finite");
+  }
+  Json hyper;
+  hyper["shape"] = NumberArray(kernel_model ? Vector() : h.shape);
+  hyper["log_block_scale"] = NumberArray(h.log_block_scale);
+  hyper["log_noise_std"] = h.log_noise_std;
+  hyper["log_output_scale"] = NumberArray(h.log_output_scale);
+  hyper["kernel_parameters"] = NumberArray(kernel_model ? h.shape : Vector());
+  return hyper;
+}
+
+Json WeightSpaceJson(const WeightSpaceGPState& s) {
+  RequireFiniteForSave("weight-space state", s.covariance_factor);
+  RequireFiniteForSave("weight-space state", s.weights);
+  Json w;
+  w["prior_variance"] = EncodeMatrix(s.prior_variance, false);
+  w["noise_variance"] = s.noise_variance;
+  w["output_scales"] = EncodeMatrix(s.output_scales, false);
+  w["covariance_factor"] = EncodeMatrix(s.covariance_factor, true);
+  w["weights"] = EncodeMatrix(s.weights, false);
+  w["y_squared"] = EncodeMatrix(s.y_squared, false);
+  w["weight_sum"] = s.weight_sum;
+  w["log_weight_sum"] = s.log_weight_sum;
+  w["log_prior_broadening"] = s.log_prior_broadening;
+  w["sample_count"] = s.sample_count;
+  w["num_samples"] = s.num_samples;
+  return w;
+}
+
+Json FunctionSpaceJson(const Matrix& inputs, const Matrix& targets) {
+  RequireFiniteForSave("stored inputs", inputs);
+  RequireFiniteForSave("stored targets", targets);
+  Json f;
+  f["inputs"] = EncodeMatrix(inputs, false);
+  f["targets"] = EncodeMatrix(targets, false);
+  return f;
+}
+
 }  // namespace
 
 // ---- saving ---------------------------------------------------------------------------------
@@ -368,16 +413,21 @@ std::string ModelFileText(const RobotModel& model) {
   if (!model.fitted()) throw std::invalid_argument("SaveModel: the model is not fitted");
   const GaussianProcess& gp = model.gp();
   const Hyperparameters& h = model.hyperparameters();
-  RequireFiniteForSave("hyperparameters.shape", h.shape);
-  RequireFiniteForSave("hyperparameters.log_block_scale", h.log_block_scale);
-  RequireFiniteForSave("hyperparameters.log_output_scale", h.log_output_scale);
-  if (!std::isfinite(h.log_noise_std)) {
-    throw std::invalid_argument("SaveModel: hyperparameters.log_noise_std is not finite");
+  const bool kernel_model = model.kernel() != nullptr;
+  Json hyper = HyperparametersJson(h, kernel_model, "hyperparameters");
+  if (h.is_per_output()) {
+    Json joints = Json::array();
+    for (size_t j = 0; j < h.per_output.size(); ++j) {
+      joints.push_back(HyperparametersJson(h.per_output[j], kernel_model,
+                                           "hyperparameters.per_joint[" + std::to_string(j) + "]"));
+    }
+    hyper["per_joint"] = joints;
   }
 
   Json doc;
   doc["format"] = kModelFileFormat;
-  doc["version"] = kModelFileVersion;
+  // Models with shared hyper-parameters stay readable by builds that read version 2.
+  doc["version"] = h.is_per_output() ? kModelFileVersion : kSharedModelFileVersion;
   doc["model"] = ToString(model.spec());
   doc["effects"] = ToString(model.spec().effects);
   Json effects = Json::array();
@@ -415,15 +465,6 @@ std::string ModelFileText(const RobotModel& model) {
   doc["num_features"] = model.feature_map() ? model.feature_map()->dim() : 0;
   doc["form"] = ToString(gp.form());
 
-  // The file keeps a kernel's parameters (Hyperparameters::shape of a kernel model) in
-  // "kernel_parameters" and an empty "shape", as it always has.
-  const bool kernel_model = model.kernel() != nullptr;
-  Json hyper;
-  hyper["shape"] = NumberArray(kernel_model ? Vector() : h.shape);
-  hyper["log_block_scale"] = NumberArray(h.log_block_scale);
-  hyper["log_noise_std"] = h.log_noise_std;
-  hyper["log_output_scale"] = NumberArray(h.log_output_scale);
-  hyper["kernel_parameters"] = NumberArray(kernel_model ? h.shape : Vector());
   doc["hyperparameters"] = hyper;
 
   const double lml = gp.LogMarginalLikelihood();
@@ -455,33 +496,26 @@ std::string ModelFileText(const RobotModel& model) {
     doc["euler_lagrange"] = e;
   } else if (const WeightSpaceGP* ws = gp.weight_space()) {
     const WeightSpaceGPState s = ws->State();
-    RequireFiniteForSave("weight-space state", s.covariance_factor);
-    RequireFiniteForSave("weight-space state", s.weights);
-    Json w;
-    w["prior_variance"] = EncodeMatrix(s.prior_variance, false);
-    w["noise_variance"] = s.noise_variance;
-    w["output_scales"] = EncodeMatrix(s.output_scales, false);
-    w["covariance_factor"] = EncodeMatrix(s.covariance_factor, true);
-    w["weights"] = EncodeMatrix(s.weights, false);
-    w["y_squared"] = EncodeMatrix(s.y_squared, false);
-    w["weight_sum"] = s.weight_sum;
-    w["log_weight_sum"] = s.log_weight_sum;
-    w["log_prior_broadening"] = s.log_prior_broadening;
-    w["sample_count"] = s.sample_count;
-    w["num_samples"] = s.num_samples;
     doc["num_samples"] = s.num_samples;
-    doc["weight_space"] = w;
+    doc["weight_space"] = WeightSpaceJson(s);
+  } else if (gp.per_output()) {
+    // One posterior per joint in weight space; in function space the points, stored once.
+    const RobotModelState state = model.State();
+    if (gp.form() == Form::kWeightSpace) {
+      Json joints = Json::array();
+      for (const WeightSpaceGPState& s : state.joint_weight_space) {
+        joints.push_back(WeightSpaceJson(s));
+      }
+      doc["num_samples"] = state.joint_weight_space.front().num_samples;
+      doc["joint_weight_space"] = joints;
+    } else {
+      doc["num_samples"] = state.inputs.rows();
+      doc["function_space"] = FunctionSpaceJson(state.inputs, state.targets);
+    }
   } else {
     const KernelGP& fs = *gp.function_space();
-    const Matrix inputs = fs.inputs();
-    const Matrix targets = fs.targets();
-    RequireFiniteForSave("stored inputs", inputs);
-    RequireFiniteForSave("stored targets", targets);
-    Json f;
-    f["inputs"] = EncodeMatrix(inputs, false);
-    f["targets"] = EncodeMatrix(targets, false);
     doc["num_samples"] = fs.size();
-    doc["function_space"] = f;
+    doc["function_space"] = FunctionSpaceJson(fs.inputs(), fs.targets());
   }
   doc["checksum"] = Checksum(doc);
   return doc.dump(2) + "\n";
@@ -596,16 +630,53 @@ int ReadNumJoints(const Json& doc, const FieldReader& r) {
 }
 
 // "hyperparameters"; *kernel_parameters: its "kernel_parameters".
+Hyperparameters ReadOneSet(const Json& hj, const std::string& prefix, const FieldReader& r,
+                           Vector* kernel_parameters) {
+  Hyperparameters hyper;
+  hyper.shape = r.Numbers(hj, prefix, "shape");
+  hyper.log_block_scale = r.Numbers(hj, prefix, "log_block_scale");
+  hyper.log_noise_std = r.Number(hj, prefix, "log_noise_std");
+  hyper.log_output_scale = r.Numbers(hj, prefix, "log_output_scale");
+  *kernel_parameters = r.Numbers(hj, prefix, "kernel_parameters");
+  return hyper;
+}
+
+// "hyperparameters"; *kernel_parameters: its "kernel_parameters". Each joint's own set
+// ("per_joint", version 3) has its kernel's parameters in shape (the library checks them).
 Hyperparameters ReadHyperparameters(const Json& doc, const FieldReader& r,
                                     Vector* kernel_parameters) {
-  Hyperparameters hyper;
   const Json& hj = r.Get(doc, "", "hyperparameters");
-  hyper.shape = r.Numbers(hj, "hyperparameters", "shape");
-  hyper.log_block_scale = r.Numbers(hj, "hyperparameters", "log_block_scale");
-  hyper.log_noise_std = r.Number(hj, "hyperparameters", "log_noise_std");
-  hyper.log_output_scale = r.Numbers(hj, "hyperparameters", "log_output_scale");
-  *kernel_parameters = r.Numbers(hj, "hyperparameters", "kernel_parameters");
+  Hyperparameters hyper = ReadOneSet(hj, "hyperparameters", r, kernel_parameters);
+  if (hj.is_object() && hj.contains("per_joint")) {
+    const Json& joints = hj.at("per_joint");
+    if (!joints.is_array() || joints.empty()) {
+      r.FailField("hyperparameters.per_joint", "expected a non-empty array of objects");
+    }
+    for (size_t j = 0; j < joints.size(); ++j) {
+      Vector own_kernel;
+      Hyperparameters own = ReadOneSet(
+          joints[j], "hyperparameters.per_joint[" + std::to_string(j) + "]", r, &own_kernel);
+      if (own_kernel.size() > 0) own.shape = own_kernel;
+      hyper.per_output.push_back(std::move(own));
+    }
+  }
   return hyper;
+}
+
+WeightSpaceGPState ReadWeightSpace(const Json& w, const std::string& p, const FieldReader& r) {
+  WeightSpaceGPState ws;
+  ws.prior_variance = r.DecodedVector(w, p, "prior_variance");
+  ws.noise_variance = r.Number(w, p, "noise_variance");
+  ws.output_scales = r.DecodedVector(w, p, "output_scales");
+  ws.covariance_factor = r.DecodedMatrix(w, p, "covariance_factor");
+  ws.weights = r.DecodedMatrix(w, p, "weights");
+  ws.y_squared = r.DecodedVector(w, p, "y_squared");
+  ws.weight_sum = r.Number(w, p, "weight_sum");
+  ws.log_weight_sum = r.Number(w, p, "log_weight_sum");
+  ws.log_prior_broadening = r.Number(w, p, "log_prior_broadening");
+  ws.sample_count = r.Number(w, p, "sample_count");
+  ws.num_samples = static_cast<long>(r.Integer(w, p, "num_samples", -(1LL << 62), 1LL << 62));
+  return ws;
 }
 
 }  // namespace
@@ -720,20 +791,28 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
     }
     if (active == Form::kWeightSpace) {
       if (!probe.feature_map()) r.Fail("inconsistent model file: a kernel model in weight space");
-      const std::string p = "weight_space";
-      const Json& w = r.Get(doc, "", "weight_space");
-      WeightSpaceGPState& ws = state.weight_space;
-      ws.prior_variance = r.DecodedVector(w, p, "prior_variance");
-      ws.noise_variance = r.Number(w, p, "noise_variance");
-      ws.output_scales = r.DecodedVector(w, p, "output_scales");
-      ws.covariance_factor = r.DecodedMatrix(w, p, "covariance_factor");
-      ws.weights = r.DecodedMatrix(w, p, "weights");
-      ws.y_squared = r.DecodedVector(w, p, "y_squared");
-      ws.weight_sum = r.Number(w, p, "weight_sum");
-      ws.log_weight_sum = r.Number(w, p, "log_weight_sum");
-      ws.log_prior_broadening = r.Number(w, p, "log_prior_broadening");
-      ws.sample_count = r.Number(w, p, "sample_count");
-      ws.num_samples = static_cast<long>(r.Integer(w, p, "num_samples", -(1LL << 62), 1LL << 62));
+      if (hyper.is_per_output()) {
+        const Json& joints = r.Get(doc, "", "joint_weight_space");
+        if (!joints.is_array() || static_cast<int>(joints.size()) != num_joints) {
+          r.FailField("joint_weight_space",
+                      "expected an array of " + std::to_string(num_joints) +
+                          " weight-space states (one per joint)");
+        }
+        for (size_t j = 0; j < joints.size(); ++j) {
+          const std::string p = "joint_weight_space[" + std::to_string(j) + "]";
+          WeightSpaceGPState ws = ReadWeightSpace(joints[j], p, r);
+          if (ws.prior_variance.size() != num_features || ws.output_scales.size() != 1) {
+            r.Fail("inconsistent model file: " + p + " has " +
+                   std::to_string(ws.prior_variance.size()) + " features and " +
+                   std::to_string(ws.output_scales.size()) + " outputs, expected " +
+                   std::to_string(num_features) + " and 1");
+          }
+          state.joint_weight_space.push_back(std::move(ws));
+        }
+        return RobotModel::FromState(state);
+      }
+      const WeightSpaceGPState& ws = state.weight_space =
+          ReadWeightSpace(r.Get(doc, "", "weight_space"), "weight_space", r);
       if (ws.prior_variance.size() != num_features || ws.output_scales.size() != num_joints) {
         r.Fail("inconsistent model file: the weight-space state has " +
                std::to_string(ws.prior_variance.size()) + " features and " +

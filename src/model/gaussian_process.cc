@@ -1,6 +1,7 @@
 #include "structgp/model/gaussian_process.h"
 
 #include <stdexcept>
+#include <utility>
 #include <string>
 
 #include "structgp/core/row_subset.h"
@@ -74,6 +75,10 @@ GaussianProcess::GaussianProcess(std::shared_ptr<const FeatureMap> map,
   if (!map_) throw std::invalid_argument("GaussianProcess: null feature map");
   ValidateHyperparameters(hyper_, *map_, num_outputs);
   phi_.resize(map_->dim());
+  for (const Hyperparameters& h : hyper_.per_output) {
+    outputs_.push_back(GaussianProcess(map_, h, 1, form, batch_));
+  }
+  y1_.resize(1);
 }
 
 GaussianProcess::GaussianProcess(const Kernel& kernel, const Hyperparameters& hyper,
@@ -86,13 +91,30 @@ GaussianProcess::GaussianProcess(const Kernel& kernel, const Hyperparameters& hy
   ValidateBatch(batch_);
   ValidateHyperparameters(hyper_, kernel, num_outputs);
   kernel_ = kernel.WithParameters(hyper_.shape);
+  if (hyper_.is_per_output()) {
+    for (const Hyperparameters& h : hyper_.per_output) {
+      outputs_.push_back(GaussianProcess(kernel, h, 1, batch_));
+    }
+    y1_.resize(1);
+    return;
+  }
   function_space_ = std::make_unique<KernelGP>(*kernel_, hyper_.noise_variance(), num_outputs,
                                                hyper_.output_scales());
 }
 
 namespace {
 
+// The regressor and Euler-Lagrange forms share their parameters across outputs.
+void RequireShared(const Hyperparameters& hyper, const char* form) {
+  if (hyper.is_per_output()) {
+    throw std::invalid_argument(std::string("GaussianProcess: per-output hyper-parameters are not "
+                                            "available in the ") +
+                                form + " form, whose outputs share their parameters");
+  }
+}
+
 void ValidateRegressorHyperparameters(const Hyperparameters& hyper, const RegressorMap& map) {
+  RequireShared(hyper, "regressor");
   hyper.Validate(0, static_cast<Eigen::Index>(map.blocks().size()), map.num_outputs(),
                  "regressor Hyperparameters");
 }
@@ -142,6 +164,7 @@ GaussianProcess::GaussianProcess(EulerLagrangeGPHyperparameters euler,
       active_(Form::kEulerLagrange),
       batch_(batch) {
   ValidateBatch(batch_);
+  RequireShared(hyper_, "Euler-Lagrange");
   euler_hyper_ = std::make_unique<EulerLagrangeGPHyperparameters>(std::move(euler));
   euler_effects_ = std::move(effects);
   EulerLagrangeGP check(*euler_hyper_, euler_effects_);  // the map fits the hyper-parameters
@@ -197,6 +220,35 @@ GaussianProcess GaussianProcess::FromWeightSpace(std::shared_ptr<const FeatureMa
   return gp;
 }
 
+GaussianProcess GaussianProcess::FromWeightSpaceOutputs(std::shared_ptr<const FeatureMap> map,
+                                                        const Hyperparameters& hyper, Form form,
+                                                        const BatchFitOptions& batch,
+                                                        std::vector<WeightSpaceGP> posteriors,
+                                                        Eigen::Index rows) {
+  GaussianProcess gp(std::move(map), hyper, static_cast<int>(posteriors.size()), form, batch);
+  if (!gp.per_output()) {
+    throw std::invalid_argument(
+        "GaussianProcess::FromWeightSpaceOutputs: hyper has no per-output sets");
+  }
+  for (size_t j = 0; j < posteriors.size(); ++j) {
+    gp.outputs_[j] = FromWeightSpace(gp.map_, hyper.per_output[j], 1, form, batch,
+                                     std::move(posteriors[j]), rows);
+  }
+  gp.active_ = Form::kWeightSpace;
+  gp.data_rows_ = rows;
+  gp.fit_rows_ = rows;
+  return gp;
+}
+
+const GaussianProcess& GaussianProcess::output(int j) const {
+  if (outputs_.empty()) throw std::logic_error("GaussianProcess::output: outputs share one model");
+  if (j < 0 || j >= static_cast<int>(outputs_.size())) {
+    throw std::out_of_range("GaussianProcess::output: " + std::to_string(j) + " not in 0.." +
+                            std::to_string(outputs_.size() - 1));
+  }
+  return outputs_[static_cast<size_t>(j)];
+}
+
 int GaussianProcess::input_dim() const {
   if (regressor_map_) return regressor_map_->input_dim();
   if (euler_hyper_) return euler_effects_ ? euler_effects_->input_dim() : 3 * num_outputs_;
@@ -209,6 +261,7 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   RequireSize("GaussianProcess::Fit Y", Y.rows(), X.rows(), "rows (as in X)");
   RequireFinite("GaussianProcess::Fit X", X);
   RequireFinite("GaussianProcess::Fit Y", Y);
+  if (!outputs_.empty()) return FitOutputs(X, Y);
   if (regressor_map_) {
     RegressorStatistics stats(regressor_map_->dim(), num_outputs_);
     stats.Accumulate(*regressor_map_, X, Y, batch_.chunk_rows);
@@ -277,8 +330,59 @@ Status GaussianProcess::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
   return Status::kOk;
 }
 
+Status GaussianProcess::FitOutputs(const ConstMatrixRef& X, const ConstMatrixRef& Y) {
+  Form form = map_ ? requested_ : Form::kFunctionSpace;
+  if (form == Form::kAuto) {
+    form = map_->dim() <= X.rows() ? Form::kWeightSpace : Form::kFunctionSpace;
+  }
+  // New models, taken only when every output fits: a failure leaves the model as it was.
+  std::vector<GaussianProcess> fitted;
+  if (form == Form::kWeightSpace) {
+    // One pass over the data for every output: Phi^T Phi is the same, only its prior and noise
+    // (and so its factor) differ.
+    AccumulateOptions accumulate;
+    accumulate.chunk_rows = batch_.chunk_rows;
+    accumulate.num_threads = batch_.num_threads;
+    const SufficientStatistics stats = AccumulateStatistics(*map_, X, Y, accumulate);
+    for (int j = 0; j < num_outputs_; ++j) {
+      const Hyperparameters& h = hyper_.per_output[static_cast<size_t>(j)];
+      SufficientStatistics own;
+      own.gram = stats.gram;
+      own.cross = stats.cross.col(j);
+      own.y_squared = stats.y_squared.segment(j, 1);
+      own.count = stats.count;
+      WeightSpaceGP posterior(PriorVariance(*map_, h), h.noise_variance(), 1, h.output_scales());
+      const Status status = posterior.Fit(own);
+      if (status != Status::kOk) return status;
+      fitted.push_back(
+          FromWeightSpace(map_, h, 1, Form::kWeightSpace, batch_, std::move(posterior), X.rows()));
+    }
+  } else {
+    for (int j = 0; j < num_outputs_; ++j) {
+      const Hyperparameters& h = hyper_.per_output[static_cast<size_t>(j)];
+      GaussianProcess gp = map_ ? GaussianProcess(map_, h, 1, Form::kFunctionSpace, batch_)
+                                : GaussianProcess(*kernel_, h, 1, batch_);
+      const Status status = gp.Fit(X, Y.col(j));
+      if (status != Status::kOk) return status;
+      fitted.push_back(std::move(gp));
+    }
+  }
+  outputs_ = std::move(fitted);
+  active_ = form;
+  data_rows_ = X.rows();
+  fit_rows_ = outputs_.front().fit_rows_;
+  return Status::kOk;
+}
+
 GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
   Workspace workspace;
+  if (!outputs_.empty()) {
+    for (const GaussianProcess& gp : outputs_) workspace.outputs.push_back(gp.MakeWorkspace());
+    workspace.output_mean.resize(1);
+    workspace.output_latent.resize(1);
+    workspace.output_noisy.resize(1);
+    return workspace;
+  }
   if (regressor_gp_) {
     workspace.regressor.resize(num_outputs_, regressor_map_->dim());
     workspace.regressor_gp = regressor_gp_->MakeWorkspace();
@@ -293,8 +397,24 @@ GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
   return workspace;
 }
 
+bool GaussianProcess::OutputsReady(Eigen::Index mean_size, const Workspace& workspace) const {
+  return mean_size == num_outputs_ && workspace.outputs.size() == outputs_.size() &&
+         workspace.output_mean.size() == 1 && workspace.output_latent.size() == 1 &&
+         workspace.output_noisy.size() == 1;
+}
+
 Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
                                 Workspace& workspace) const {
+  if (!outputs_.empty()) {
+    if (!OutputsReady(mean.size(), workspace)) return Status::kInvalidInput;
+    for (size_t j = 0; j < outputs_.size(); ++j) {
+      const Status status =
+          outputs_[j].Predict(x, workspace.output_mean, workspace.outputs[j]);
+      if (status != Status::kOk) return status;
+      mean[static_cast<Eigen::Index>(j)] = workspace.output_mean[0];
+    }
+    return Status::kOk;
+  }
   if (regressor_map_) {
     if (!RegressorInputOk(x, workspace)) return Status::kInvalidInput;
     regressor_map_->Evaluate(x, workspace.regressor, workspace.regressor_scratch.get());
@@ -316,6 +436,23 @@ Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
 Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                                             VectorRef latent_variance, VectorRef noisy_variance,
                                             Workspace& workspace) const {
+  if (!outputs_.empty()) {
+    if (!OutputsReady(mean.size(), workspace) || latent_variance.size() != num_outputs_ ||
+        noisy_variance.size() != num_outputs_) {
+      return Status::kInvalidInput;
+    }
+    for (size_t j = 0; j < outputs_.size(); ++j) {
+      const Status status = outputs_[j].PredictWithVariance(
+          x, workspace.output_mean, workspace.output_latent, workspace.output_noisy,
+          workspace.outputs[j]);
+      if (status != Status::kOk) return status;
+      const auto k = static_cast<Eigen::Index>(j);
+      mean[k] = workspace.output_mean[0];
+      latent_variance[k] = workspace.output_latent[0];
+      noisy_variance[k] = workspace.output_noisy[0];
+    }
+    return Status::kOk;
+  }
   if (regressor_map_) {
     if (!RegressorInputOk(x, workspace)) return Status::kInvalidInput;
     regressor_map_->Evaluate(x, workspace.regressor, workspace.regressor_scratch.get());
@@ -366,6 +503,18 @@ bool GaussianProcess::RegressorInputOk(const ConstVectorRef& x, const Workspace&
 }
 
 Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
+  if (!outputs_.empty()) {
+    // Checked here so that a bad sample changes no output.
+    if (x.size() != input_dim() || !x.allFinite() || y.size() != num_outputs_ || !y.allFinite()) {
+      return Status::kInvalidInput;
+    }
+    for (size_t j = 0; j < outputs_.size(); ++j) {
+      y1_[0] = y[static_cast<Eigen::Index>(j)];
+      const Status status = outputs_[j].Add(x, y1_);
+      if (status != Status::kOk) return status;
+    }
+    return Status::kOk;
+  }
   if (regressor_map_) {
     if (!regressor_gp_ || x.size() != input_dim() || !x.allFinite() || y.size() != num_outputs_ ||
         !y.allFinite()) {
@@ -391,6 +540,12 @@ Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
 }
 
 double GaussianProcess::LogMarginalLikelihood() const {
+  if (!outputs_.empty()) {
+    // Independent outputs: the evidence of all is the sum of each one's.
+    double sum = 0.0;
+    for (const GaussianProcess& gp : outputs_) sum += gp.LogMarginalLikelihood();
+    return sum;
+  }
   if (regressor_map_) {
     if (!regressor_gp_) throw std::logic_error("GaussianProcess: not fitted");
     return regressor_gp_->LogMarginalLikelihood();

@@ -309,6 +309,11 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                        const Hyperparameters& hyper) {
   RequireSize("RobotModel::Fit X", X.cols(), input_dim(), "columns");
   RequireSize("RobotModel::Fit Y", Y.cols(), num_joints_, "columns (joints)");
+  if (hyper.is_per_output() && (spec_.base == BaseModel::kLagk || regressor_)) {
+    throw std::invalid_argument("model '" + ToString(spec_) +
+                                "' shares its parameters across joints: per-joint "
+                                "hyper-parameters are for pol, motor, rbf and rbfs models");
+  }
   std::unique_ptr<GaussianProcess> gp;
   if (spec_.base == BaseModel::kLagk) {
     gp = std::make_unique<GaussianProcess>(
@@ -346,6 +351,17 @@ RobotModelState RobotModel::State() const {
     state.regressor = regressor->State();
   } else if (const WeightSpaceGP* ws = fitted_gp.weight_space()) {
     state.weight_space = ws->State();
+  } else if (fitted_gp.per_output() && fitted_gp.form() == Form::kWeightSpace) {
+    for (int j = 0; j < num_joints_; ++j) {
+      state.joint_weight_space.push_back(fitted_gp.output(j).weight_space()->State());
+    }
+  } else if (fitted_gp.per_output()) {
+    // The same points for every joint: each joint's targets are its column.
+    state.inputs = fitted_gp.output(0).function_space()->inputs();
+    state.targets.resize(state.inputs.rows(), num_joints_);
+    for (int j = 0; j < num_joints_; ++j) {
+      state.targets.col(j) = fitted_gp.output(j).function_space()->targets().col(0);
+    }
   } else {
     state.inputs = fitted_gp.function_space()->inputs();
     state.targets = fitted_gp.function_space()->targets();
@@ -396,6 +412,21 @@ RobotModel RobotModel::FromState(const RobotModelState& state) {
                                   " joints has no feature map, so no weight-space form");
     }
     ValidateHyperparameters(hyper, *model.map_, N);
+    if (hyper.is_per_output()) {
+      RequireSize("RobotModel::FromState joint_weight_space",
+                  static_cast<Eigen::Index>(state.joint_weight_space.size()), N,
+                  "posteriors (one per joint)");
+      std::vector<WeightSpaceGP> posteriors;
+      for (const WeightSpaceGPState& joint : state.joint_weight_space) {
+        posteriors.push_back(WeightSpaceGP::FromState(joint));
+      }
+      const Eigen::Index rows = std::max<long>(0, posteriors.front().num_samples());
+      model.gp_ = std::make_unique<GaussianProcess>(GaussianProcess::FromWeightSpaceOutputs(
+          model.map_, hyper, state.options.form, state.options.batch, std::move(posteriors),
+          rows));
+      model.hyper_ = hyper;
+      return model;
+    }
     WeightSpaceGP posterior = WeightSpaceGP::FromState(state.weight_space);
     const Eigen::Index rows = std::max<long>(0, posterior.num_samples());
     model.gp_ = std::make_unique<GaussianProcess>(
@@ -560,25 +591,34 @@ Status RobotModel::PredictComponents(const ConstVectorRef& x,
     }
     return Status::kOk;
   }
-  if (!gp_ || !map_ || gp_->weight_space() == nullptr || x.size() != input_dim() ||
+  if (!gp_ || !map_ || JointPosterior(0).first == nullptr || x.size() != input_dim() ||
       !x.allFinite()) {
     return Status::kInvalidInput;
   }
-  const WeightSpaceGP& ws = *gp_->weight_space();
   Vector phi(map_->dim());
   map_->Evaluate(x, phi);
-  const Matrix& W = ws.weights();
-  const Matrix& S = ws.covariance_factor();
-  const Vector s2 = ws.output_scales().cwiseAbs2() * ws.noise_variance();
   components->clear();
   for (const auto& p : parts_) {
     Component c;
     c.name = p.name;
+    c.mean.resize(num_joints_);
+    c.latent_variance.resize(num_joints_);
     const auto phi_p = phi.segment(p.begin, p.size);
-    c.mean = W.middleRows(p.begin, p.size).transpose() * phi_p;
-    // phi_p^T (A^{-1})_pp phi_p = ||S^T phi_masked||^2, only rows of the part contribute.
-    const double quad = (S.middleRows(p.begin, p.size).transpose() * phi_p).squaredNorm();
-    c.latent_variance = quad * s2;
+    const WeightSpaceGP* last = nullptr;
+    double quad = 0.0;
+    for (int j = 0; j < num_joints_; ++j) {
+      const auto [ws, column] = JointPosterior(j);
+      if (ws != last) {
+        // phi_p^T (A^{-1})_pp phi_p = ||S^T phi_masked||^2, only rows of the part contribute;
+        // the same for every column of one posterior.
+        quad = (ws->covariance_factor().middleRows(p.begin, p.size).transpose() * phi_p)
+                   .squaredNorm();
+        last = ws;
+      }
+      c.mean[j] = ws->weights().col(column).segment(p.begin, p.size).dot(phi_p);
+      const double scale = ws->output_scales()[column];
+      c.latent_variance[j] = quad * scale * scale * ws->noise_variance();
+    }
     components->push_back(std::move(c));
   }
   if (prior_mean_) {
@@ -598,7 +638,7 @@ std::pair<double, double> RobotModel::Coefficient(const std::string& feature, in
     throw std::invalid_argument("Coefficient: joint " + std::to_string(joint) +
                                 " out of range 1.." + std::to_string(num_joints_));
   }
-  if (!gp_ || (gp_->regressor() == nullptr && gp_->weight_space() == nullptr)) {
+  if (!gp_ || (gp_->regressor() == nullptr && JointPosterior(0).first == nullptr)) {
     throw std::invalid_argument("Coefficient: needs a fitted weight-space model");
   }
   for (const auto& [name, index] : parametric_names_) {
@@ -614,11 +654,18 @@ std::pair<double, double> RobotModel::CoefficientAt(int index, int joint) const 
     const Matrix covariance = gp.ParameterCovariance();
     return {gp.parameters()[index], std::sqrt(std::max(0.0, covariance(index, index)))};
   }
-  const WeightSpaceGP& ws = *gp_->weight_space();
-  const double value = ws.weights()(index, joint - 1);
-  const double var = ws.covariance_factor().row(index).squaredNorm() * ws.noise_variance() *
-                     ws.output_scales()[joint - 1] * ws.output_scales()[joint - 1];
+  const auto [ws, column] = JointPosterior(joint - 1);
+  const double value = ws->weights()(index, column);
+  const double scale = ws->output_scales()[column];
+  const double var =
+      ws->covariance_factor().row(index).squaredNorm() * ws->noise_variance() * scale * scale;
   return {value, std::sqrt(var)};
+}
+
+std::pair<const WeightSpaceGP*, int> RobotModel::JointPosterior(int joint) const {
+  if (!gp_) return {nullptr, 0};
+  if (gp_->per_output()) return {gp_->output(joint).weight_space(), 0};
+  return {gp_->weight_space(), joint};
 }
 
 namespace {
@@ -641,7 +688,7 @@ int FeatureJoint(const std::string& name) {
 bool RobotModel::has_components() const {
   if (!gp_) return false;
   if (regressor_) return gp_->regressor() != nullptr;
-  return map_ != nullptr && gp_->weight_space() != nullptr;
+  return map_ != nullptr && JointPosterior(0).first != nullptr;
 }
 
 std::vector<ComponentRows> RobotModel::PredictComponentRows(const ConstMatrixRef& X) const {
@@ -679,7 +726,7 @@ std::vector<ComponentRows> RobotModel::PredictComponentRows(const ConstMatrixRef
 std::vector<FeatureCoefficient> RobotModel::Coefficients() const {
   if (parametric_names_.empty()) return {};
   const bool regressor = gp_ && gp_->regressor() != nullptr;
-  if (!regressor && (!gp_ || gp_->weight_space() == nullptr)) {
+  if (!regressor && JointPosterior(0).first == nullptr) {
     throw std::invalid_argument("RobotModel::Coefficients: needs a fitted weight-space or rbd/lag "
                                 "model; this is " + ModelLabel(spec_) +
                                 (gp_ ? std::string(" in ") + ToString(gp_->form()) + " form"

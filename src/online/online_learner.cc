@@ -731,6 +731,11 @@ OnlineLearnerOptions OnlineLearnerOptionsFor(const RobotModel& model) {
                                 " has a prior mean (the URDF's torques), which the learner does "
                                 "not add; Replay (online/replay.h) handles it");
   }
+  if (model.per_joint()) {
+    throw std::invalid_argument("OnlineLearnerOptionsFor: " + ModelLabel(model.spec()) +
+                                " has per-joint hyper-parameters; the learner updates one "
+                                "posterior shared by the joints: fit without per-joint sets");
+  }
   const Hyperparameters& h = model.hyperparameters();
   OnlineLearnerOptions o;
   o.feature_map = model.feature_map();

@@ -58,6 +58,12 @@ OnlineLearnerOptions LearnerOptions(const RobotModel& model, const Hyperparamete
     }
     return o;
   }
+  if (model.fitted() && model.per_joint()) {
+    throw std::invalid_argument(
+        "Replay: model '" + ToString(model.spec()) +
+        "' has per-joint hyper-parameters (one posterior per joint); the online learner updates "
+        "one posterior shared by the joints: fit the model without --per-joint");
+  }
   if (model.feature_map() == nullptr ||
       (model.fitted() && model.gp().weight_space() == nullptr)) {
     throw std::invalid_argument(

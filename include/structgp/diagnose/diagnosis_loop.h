@@ -40,7 +40,8 @@ struct DiagnosisLoopOptions {
   /// set by the loop from the training data.
   DiagnosisOptions diagnosis;
   /// The refits; FitOptions::model is replaced by the diagnosed model's own options (its
-  /// friction width, inducing states, threads).
+  /// friction width, inducing states, threads), and FitOptions::per_joint by whether the
+  /// diagnosed model has per-joint hyper-parameters.
   FitOptions fit;
   /// lagk: each refit searches the evidence from the current model's hyper-parameters, at its
   /// sigma (FitOptions::euler_lagrange.start), so that adding an effect to one joint leaves

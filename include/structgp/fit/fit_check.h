@@ -92,10 +92,13 @@ Vector BandCoverage(const ConstMatrixRef& mean, const ConstMatrixRef& latent_std
 /// of X, Y outside each contiguous block (of the evenly spaced subset) and predicts the block.
 /// X: the model's inputs (ModelInputs), Y: m x N torques. Throws std::invalid_argument on
 /// invalid options or sizes. A fold whose fit fails numerically is skipped (said in the
-/// message).
+/// message). only_joint (1-based): only that joint's predictions count (its verdict, its
+/// coverage; the other entries of FitCheck::coverage are NaN), as when one joint's
+/// hyper-parameters are chosen (FitOptions::per_joint); 0: every joint.
 FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hyper,
                               const ConstMatrixRef& X, const ConstMatrixRef& Y,
-                              const FitCheckOptions& options = FitCheckOptions());
+                              const FitCheckOptions& options = FitCheckOptions(),
+                              int only_joint = 0);
 
 }  // namespace structgp
 

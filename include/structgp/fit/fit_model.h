@@ -129,6 +129,15 @@ struct FitOptions {
   /// called FitModel. May be empty.
   std::function<FitCallbackReturn(const FitProgress&)> callback;
 
+  /// Each joint its own hyper-parameters (Hyperparameters::per_output: shape, block scales,
+  /// noise and output scale): the search, its prior and its held-out check run on each joint's
+  /// torque alone, one after the other (about N times the cost of one shared search), then the
+  /// held-out check of all joints; the model holds one posterior per joint (N factors instead of
+  /// one). pol, motor, rbf and rbfs; rbd, lag and lagk share their parameters across joints
+  /// (std::invalid_argument). The online learner needs the shared set (one posterior factor
+  /// updated per sample).
+  bool per_joint = false;
+
   /// Options of the RobotModel that FitModel(spec, ...) builds.
   RobotModelOptions model;
 
@@ -206,6 +215,14 @@ struct FitSummary {
   /// Wall-clock seconds of the hyper-parameter search and of the whole call.
   double hyperparameter_seconds = 0.0;
   double total_seconds = 0.0;
+
+  /// FitOptions::per_joint: each joint's own search, in joint order (its method description,
+  /// iterations, starts, evidence of its torque, its held-out check, notes and warnings). The
+  /// fields above then hold the sums of iterations, evaluations and evidence (the outputs are
+  /// independent, so the evidence of all is the sum), every joint's notes and warnings
+  /// prefixed with its name, and the held-out check of all joints with their own sets; starts
+  /// are per joint only. Empty otherwise.
+  std::vector<FitSummary> joints;
 
   /// True when the model was fitted (kConverged, kMaxIterations, kLineSearchFailed).
   bool IsUsable() const;

@@ -52,10 +52,15 @@ namespace structgp {
 
 /// The value of the "format" field.
 inline constexpr const char* kModelFileFormat = "structgp-model";
-/// The version written by SaveModel. LoadModel reads it and every version from
-/// kOldestModelFileVersion, except 'lag' and 'lagk' models of version 1 (refused, naming the
-/// field "model": version 2 changed their Euler-Lagrange space, so they must be fitted again).
-inline constexpr int kModelFileVersion = 2;
+/// The newest version, written by SaveModel for models with per-joint hyper-parameters
+/// ("hyperparameters.per_joint", and in weight space "joint_weight_space"). LoadModel reads it
+/// and every version from kOldestModelFileVersion, except 'lag' and 'lagk' models of version 1
+/// (refused, naming the field "model": version 2 changed their Euler-Lagrange space, so they
+/// must be fitted again).
+inline constexpr int kModelFileVersion = 3;
+/// The version SaveModel writes for models whose joints share their hyper-parameters (their
+/// files are the same as in version 2, so builds that read version 2 read them).
+inline constexpr int kSharedModelFileVersion = 2;
 inline constexpr int kOldestModelFileVersion = 1;
 
 /// The complete text of the model file of `model` (what SaveModel writes). Throws

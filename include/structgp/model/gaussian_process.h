@@ -10,8 +10,13 @@
 /// parameters through a regressor (RegressorMap: the rigid-body regressor of `rbd`): RegressorGP.
 /// A fourth is one multi-output GP of all joint torques on the Euler-Lagrange kernel (`lagk`:
 /// EulerLagrangeGP), exact or through inducing states.
+///
+/// With per-output hyper-parameters (Hyperparameters::per_output) the feature-map and kernel
+/// forms hold one single-output Gaussian process per output, each with its own set: the
+/// weight space accumulates Phi^T Phi once and factorises it once per output.
 
 #include <memory>
+#include <vector>
 
 #include "structgp/core/status.h"
 #include "structgp/core/types.h"
@@ -114,6 +119,15 @@ class GaussianProcess {
                                                std::shared_ptr<const FeatureMap> effects = nullptr,
                                                const Vector& effect_prior_variance = Vector());
 
+  /// A weight-space model with per-output hyper-parameters (hyper.per_output, one entry per
+  /// posterior) in the given single-output posteriors, without a fit: how a stored model is
+  /// restored. Throws std::invalid_argument when the sizes do not fit.
+  static GaussianProcess FromWeightSpaceOutputs(std::shared_ptr<const FeatureMap> map,
+                                                const Hyperparameters& hyper, Form form,
+                                                const BatchFitOptions& batch,
+                                                std::vector<WeightSpaceGP> posteriors,
+                                                Eigen::Index rows);
+
   /// A weight-space model in the given posterior (WeightSpaceGP::FromState, say), without a
   /// fit: form() is kWeightSpace, data_rows() = fit_rows() = rows. The posterior must have
   /// map->dim() features and num_outputs outputs (std::invalid_argument otherwise); it is
@@ -143,6 +157,11 @@ class GaussianProcess {
   Form form() const { return active_; }
   int input_dim() const;
   int num_outputs() const { return num_outputs_; }
+  /// True with per-output hyper-parameters: output j is then output(j), a fitted
+  /// single-output GaussianProcess, and weight_space() and function_space() are null.
+  bool per_output() const { return !outputs_.empty(); }
+  /// Output j's own Gaussian process (0-based; per_output() only, std::logic_error otherwise).
+  const GaussianProcess& output(int j) const;
 
   /// Scratch of the const predictions, owned by the caller (one per thread).
   struct Workspace {
@@ -155,6 +174,9 @@ class GaussianProcess {
     /// give each thread its own MakeWorkspace().
     std::shared_ptr<RegressorMap::Scratch> regressor_scratch;
     EulerLagrangeGP::Workspace euler_lagrange;  ///< Euler-Lagrange form
+    /// Per-output hyper-parameters: each output's workspace, and one output's results.
+    std::vector<Workspace> outputs;
+    Vector output_mean, output_latent, output_noisy;  ///< 1 each
   };
   /// A workspace for the fitted form (allocates). After a refit or a Reserve of the function
   /// space, make a new one.
@@ -172,12 +194,14 @@ class GaussianProcess {
                              VectorRef noisy_variance) const;
   /// Adds one sample online (O(D^2) or O(m^2)); the function space needs Reserve'd room. The
   /// regressor form adds the sample to its statistics and refits (O(N P^2 + P^3)). The
-  /// Euler-Lagrange form has no online update: kInvalidInput.
+  /// Euler-Lagrange form has no online update: kInvalidInput. Per-output hyper-parameters:
+  /// every output takes the sample in turn (O(P D^2)); a sample of the wrong size or with a
+  /// NaN changes none, a numerical failure of output j leaves outputs 0..j-1 updated.
   Status Add(const ConstVectorRef& x, const ConstVectorRef& y);
 
   double LogMarginalLikelihood() const;
 
-  /// The underlying models; exactly one is non-null after Fit.
+  /// The underlying models; exactly one is non-null after Fit, none with per_output().
   const WeightSpaceGP* weight_space() const { return weight_space_.get(); }
   const KernelGP* function_space() const { return function_space_.get(); }
   KernelGP* mutable_function_space() { return function_space_.get(); }
@@ -209,7 +233,14 @@ class GaussianProcess {
   Eigen::Index data_rows_ = 0;
   Eigen::Index fit_rows_ = 0;
   Vector phi_;  // feature scratch of Add (D)
+  // Per-output hyper-parameters: one single-output model per output (empty otherwise).
+  std::vector<GaussianProcess> outputs_;
+  Vector y1_;  // one output's target in Add (1)
   bool RegressorInputOk(const ConstVectorRef& x, const Workspace& workspace) const;
+  // Per-output hyper-parameters: the fit of every output, and the check of a prediction's
+  // sizes and workspace.
+  Status FitOutputs(const ConstMatrixRef& X, const ConstMatrixRef& Y);
+  bool OutputsReady(Eigen::Index mean_size, const Workspace& workspace) const;
 };
 
 }  // namespace structgp

@@ -120,6 +120,10 @@ struct RobotModelState {
   Form form = Form::kWeightSpace;
   /// Weight space: the posterior (restored as it is, without a fit).
   WeightSpaceGPState weight_space;
+  /// Weight space with per-joint hyper-parameters (hyperparameters.per_output): each joint's
+  /// single-output posterior, in joint order (weight_space is then unused); the function space
+  /// stores its points once, in inputs and targets, for every joint.
+  std::vector<WeightSpaceGPState> joint_weight_space;
   /// Regressor (rbd): its prior, noise and statistics (restored by a deterministic refit).
   RegressorGPState regressor;
   /// Function space and kEulerLagrange: the stored points (m x input_dim, m x N), whose
@@ -164,17 +168,22 @@ class RobotModel {
   /// kernel: its default parameters, with broad priors on friction and effects).
   Hyperparameters DefaultHyperparameters(const ConstMatrixRef& Y) const;
 
-  /// Fits X (m x input_dim) and Y (m x N) with the given hyper-parameters: for a feature map
+  /// Fits X (m x input_dim) and Y (m x N) with the given hyper-parameters (shared by the
+  /// joints, or one set per joint in hyper.per_output: pol, motor, rbf and rbfs only): for a feature map
   /// its shape and block scales, for a kernel its parameters in hyper.shape (the layout of
   /// kernel()->parameters(), e.g. a FitKernelHyperparameters result; log_block_scale empty),
   /// and the noise and output scales. On success the model owns hyper (hyperparameters())
   /// and kernel() has its parameters. Throws std::invalid_argument on bad sizes or values; a
-  /// numerical failure is a status (the model is then unchanged).
+  /// numerical failure is a status (the model is then unchanged). std::invalid_argument too
+  /// for per-joint sets on rbd, lag or lagk, whose joints share their parameters.
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y, const Hyperparameters& hyper);
   /// Fits with DefaultHyperparameters(Y).
   Status Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y);
 
   bool fitted() const { return gp_ != nullptr; }
+  /// True when the fitted model's joints each have their own hyper-parameters
+  /// (hyperparameters().per_output, FitOptions::per_joint).
+  bool per_joint() const { return hyper_.is_per_output(); }
 
   /// The model's complete state. Throws std::logic_error when not fitted. O(D^2) or
   /// O(m input_dim) copy; allocates.
@@ -258,6 +267,10 @@ class RobotModel {
   };
   // Coefficient of parameter `index` on joint `joint`'s torque (1-based), with its std.
   std::pair<double, double> CoefficientAt(int index, int joint) const;
+  // Joint `joint`'s (0-based) weight-space posterior and its column in it: the shared
+  // posterior's column joint, or with per-joint hyper-parameters the joint's own posterior's
+  // only column; null when the model is not fitted in weight space.
+  std::pair<const WeightSpaceGP*, int> JointPosterior(int joint) const;
   void BuildFeatureMap();
   void BuildKernel();
   void BuildRegressor();
