@@ -431,8 +431,7 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
     const std::unique_ptr<Kernel> kernel =
         sum ? std::make_unique<SumKernel>(std::vector<const Kernel*>{&joint_kernel, &sum->part(1)})
             : joint_kernel.Clone();
-    Hyperparameters h = start;
-    h.log_output_scale = start.log_output_scale.segment(j, 1);
+    Hyperparameters h = start.Output(j);
     const MaximumLikelihoodSummary s =
         FitKernelHyperparameters(*kernel, Xs, Ys.col(j), defaults.evidence, &h);
     if (!s.usable()) throw std::runtime_error("joint " + std::to_string(j + 1) + ": " + s.message);

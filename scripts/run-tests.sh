@@ -69,15 +69,16 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # TSan: the tests that run threads (online learner next to a control loop, multi-threaded
   # batch statistics, Nystrom features built on several threads, the lagk posterior's DTC on
   # several workers, lagk's evidence and the factorisation and inverse under it on several
-  # threads); only their targets are built.
+  # threads, the joints' own searches at once); only their targets are built.
   tsan=${STRUCTGP_TSAN_BUILD_DIR:-build-tsan}
   cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSTRUCTGP_SANITIZER=thread \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
   cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit test_concurrent_predict \
-        test_euler_lagrange_gp test_cholesky
+        test_euler_lagrange_gp test_cholesky test_per_joint
   threaded='^test_(online|nystrom|batch_fit|concurrent_predict)\.'
   threaded+='|^test_euler_lagrange_gp\.EulerLagrangeGP\.(DtcOverBlocksAndWorkers|EvidenceOnThreads)'
   threaded+='|^test_cholesky\.(Cholesky\.ThreadsGiveTheOneThread|Workers\.)'
+  threaded+='|^test_per_joint\.PerJointFit\.JointsOnThreads'
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
     ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R "$threaded"
 

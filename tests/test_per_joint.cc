@@ -8,11 +8,13 @@
 // ratio of prior to noise cannot serve two joints, and the models whose joints share their
 // parameters refuse per-joint sets.
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -227,6 +229,15 @@ TEST(PerJointGaussianProcess, RefusesBadSetsAndSharedForms) {
   hyper.per_output[1].per_output = TwoSets(hyper);
   EXPECT_THROW(GaussianProcess(map, hyper, 2), std::invalid_argument);
 
+  // Output(j): a joint's own set, or the shared set with the joint's scale.
+  hyper.per_output = TwoSets(hyper);
+  EXPECT_EQ(hyper.Output(1).log_noise_std, hyper.per_output[1].log_noise_std);
+  Hyperparameters shared = hyper;
+  shared.per_output.clear();
+  EXPECT_EQ(shared.Output(1).log_output_scale[0], shared.log_output_scale[1]);
+  EXPECT_EQ(shared.Output(1).shape, shared.shape);
+  EXPECT_THROW(shared.Output(2), std::out_of_range);
+
   // lag shares its parameters across joints.
   const sim::Dataset& d = Scenario().train;
   RobotModel lag(Spec("lag"), 2);
@@ -262,7 +273,8 @@ TEST(PerJointFit, EqualsEachJointsSearchByHand) {
   EXPECT_EQ(fit.summary.check.coverage.size(), 2);
 
   RobotModel reference(spec, 2);
-  Hyperparameters hyper = reference.DefaultHyperparameters(d.Y);
+  const Hyperparameters start = reference.DefaultHyperparameters(d.Y);
+  Hyperparameters hyper = start;
   double evidence = 0.0;
   int iterations = 0;
   for (int j = 0; j < 2; ++j) {
@@ -273,9 +285,9 @@ TEST(PerJointFit, EqualsEachJointsSearchByHand) {
     EXPECT_TRUE(js.check.ran);
     EXPECT_TRUE(std::isnan(js.check.coverage[1 - j])) << "the check of joint " << j + 1
                                                       << " read the other joint";
-    Hyperparameters own = hyper;
-    own.per_output.clear();
-    own.log_output_scale = hyper.log_output_scale.segment(j, 1);
+    Hyperparameters own = start.Output(j);
+    EXPECT_TRUE(own.per_output.empty());
+    EXPECT_EQ(own.log_output_scale.size(), 1);
     const SufficientStatistics stats =
         AccumulateStatistics(*reference.feature_map(), d.X, d.Y.col(j));
     const WeightSpaceEvidence ev(reference.feature_map(), stats);
@@ -307,6 +319,57 @@ TEST(PerJointFit, EqualsEachJointsSearchByHand) {
   const std::string json = ToJson(fit.model, fit.summary);
   EXPECT_NE(json.find("\"per_joint\": true"), std::string::npos);
   EXPECT_NE(json.find("\"joints\""), std::string::npos);
+}
+
+// With two threads both joints are searched at once: the same sets as one at a time, the
+// progress still on the calling thread, and an abort from it stops the fit.
+TEST(PerJointFit, JointsOnThreadsGiveTheOneThreadResult) {
+  const sim::Dataset& d = Scenario().train;
+  const ModelSpec spec = Spec("pol+fri");
+  FitOptions one;
+  one.per_joint = true;
+  const FittedModel a = FitModel(spec, d.X, d.Y, d.t, one);
+  ASSERT_TRUE(a.summary.IsUsable()) << a.summary.message;
+
+  FitOptions two = one;
+  two.num_threads = 2;
+  const std::thread::id caller = std::this_thread::get_id();
+  bool other_thread = false;
+  std::vector<std::string> messages;
+  two.callback = [&](const FitProgress& p) {
+    other_thread = other_thread || std::this_thread::get_id() != caller;
+    if (!p.message.empty()) messages.push_back(p.message);
+    return FitCallbackReturn::kContinue;
+  };
+  const FittedModel b = FitModel(spec, d.X, d.Y, d.t, two);
+  ASSERT_TRUE(b.summary.IsUsable()) << b.summary.message;
+  EXPECT_FALSE(other_thread) << "the callback was called on a worker thread";
+  for (int j = 0; j < 2; ++j) {
+    const Hyperparameters& x = a.model.hyperparameters().per_output[static_cast<size_t>(j)];
+    const Hyperparameters& y = b.model.hyperparameters().per_output[static_cast<size_t>(j)];
+    EXPECT_EQ(x.shape, y.shape);
+    EXPECT_EQ(x.log_block_scale, y.log_block_scale);
+    EXPECT_EQ(x.log_noise_std, y.log_noise_std);
+    EXPECT_EQ(x.log_output_scale, y.log_output_scale);
+  }
+  Matrix pa, pb;
+  a.model.PredictRows(d.X, &pa);
+  b.model.PredictRows(d.X, &pb);
+  EXPECT_EQ(pa, pb);
+  for (const char* joint : {"joint 1: ", "joint 2: "}) {
+    EXPECT_TRUE(std::any_of(messages.begin(), messages.end(), [&](const std::string& m) {
+      return m.rfind(joint, 0) == 0;
+    })) << joint;
+  }
+
+  FitOptions abort = two;
+  abort.callback = [](const FitProgress& p) {
+    return p.message.find("joint 2: ") == 0 ? FitCallbackReturn::kAbort
+                                            : FitCallbackReturn::kContinue;
+  };
+  const FittedModel c = FitModel(spec, d.X, d.Y, d.t, abort);
+  EXPECT_EQ(c.summary.termination, FitTermination::kUserAbort);
+  EXPECT_FALSE(c.model.fitted());
 }
 
 // Noise-free two-link torques with noise of 0.3% of joint 1's torque RMS and 8% of joint 2's:

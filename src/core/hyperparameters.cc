@@ -24,6 +24,22 @@ Vector Hyperparameters::noise_stds() const {
   return stds;
 }
 
+Hyperparameters Hyperparameters::Output(Eigen::Index j) const {
+  const Eigen::Index outputs =
+      per_output.empty() ? log_output_scale.size() : static_cast<Eigen::Index>(per_output.size());
+  if (j < 0 || j >= outputs) {
+    throw std::out_of_range("Hyperparameters::Output: " + std::to_string(j) + " not in 0.." +
+                            std::to_string(outputs - 1));
+  }
+  if (!per_output.empty()) return per_output[static_cast<size_t>(j)];
+  Hyperparameters own;
+  own.shape = shape;
+  own.log_block_scale = log_block_scale;
+  own.log_noise_std = log_noise_std;
+  own.log_output_scale = log_output_scale.segment(j, 1);
+  return own;
+}
+
 void Hyperparameters::Validate(Eigen::Index num_shape, Eigen::Index num_blocks,
                                Eigen::Index num_outputs, const std::string& what) const {
   RequireSize(what + ".shape", shape.size(), num_shape);

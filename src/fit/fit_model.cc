@@ -1,8 +1,14 @@
 #include "structgp/fit/fit_model.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <exception>
 #include <functional>
+#include <mutex>
+#include <thread>
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -36,8 +42,14 @@ std::string Number(double value) { return Format("%.6g", value); }
 // One fit in progress: the clock, the callback and the summary being filled.
 class Fit {
  public:
-  Fit(const FitOptions& options, RobotModel* model)
-      : options_(options), model_(model), start_(std::chrono::steady_clock::now()) {
+  // origin: the time FitModel was called, from which progress counts its seconds (a joint's
+  // search, FitOptions::per_joint, times its own summary from its own start).
+  Fit(const FitOptions& options, RobotModel* model,
+      std::chrono::steady_clock::time_point origin = std::chrono::steady_clock::now())
+      : options_(options),
+        model_(model),
+        start_(std::chrono::steady_clock::now()),
+        origin_(origin) {
     summary_.method = options.method;
     summary_.initial_negative_log_evidence = kNaN;
     summary_.final_negative_log_evidence = kNaN;
@@ -54,7 +66,7 @@ class Fit {
     p.message = joint_ > 0 && !message.empty() ? Format("joint %d: ", joint_) + message : message;
     p.iteration = iteration;
     p.negative_log_evidence = nle;
-    p.seconds = seconds();
+    p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - origin_).count();
     if (options_.callback(p) == FitCallbackReturn::kContinue) return true;
     aborted_ = true;
     return false;
@@ -135,6 +147,7 @@ class Fit {
 
   const FitOptions& options() const { return options_; }
   RobotModel* model() { return model_; }
+  std::chrono::steady_clock::time_point origin() const { return origin_; }
   // The joint (1-based) whose own hyper-parameters are searched (FitOptions::per_joint), 0 for
   // a search of the shared set.
   int joint() const { return joint_; }
@@ -149,6 +162,7 @@ class Fit {
   const FitOptions& options_;
   RobotModel* model_;
   std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point origin_;
   FitSummary summary_;
   FitTermination search_end_ = FitTermination::kConverged;
   std::string search_message_;
@@ -507,50 +521,172 @@ bool EulerLagrangeByEvidence(const Matrix& X, const Matrix& Yr, Fit* fit, Hyperp
   return true;
 }
 
-// FitOptions::per_joint: each joint's own search, one after the other, on its torque alone
-// (Yr's column; Y, all torques, for the held-out check of its candidates, which reads that
-// joint), each joint's summary kept in the fit's summary and merged into it. *h holds the
-// data-derived shared start on entry; on success its per_output holds the joints' sets.
+// One joint's own search (FitOptions::per_joint) on its torque alone (Yr's column; Y, all
+// torques, for the held-out check of its candidates, which reads that joint).
+struct JointSearch {
+  bool ok = false;
+  bool aborted = false;
+  std::string failure;
+  FitSummary summary;
+  Hyperparameters set;
+  std::exception_ptr error;  // thrown on a worker thread, rethrown on the caller's
+};
+
+JointSearch SearchJoint(const FitOptions& options, RobotModel* model,
+                        std::chrono::steady_clock::time_point origin, const Matrix& X,
+                        const Matrix& Y, const Matrix& Yr, const ConstVectorRef& t,
+                        bool kernel_model, const Hyperparameters& start, int j) {
+  JointSearch out;
+  Fit joint(options, model, origin);
+  joint.set_joint(j + 1);
+  out.set = start.Output(j);
+  const Matrix Yr_j = Yr.col(j);
+  bool go_on = true;
+  switch (options.method) {
+    case HyperparameterMethod::kEvidence:
+      go_on = kernel_model ? KernelByEvidence(X, Y, Yr_j, &joint, &out.set, &out.failure)
+                           : FeatureMapByEvidence(X, Y, Yr_j, &joint, &out.set, &out.failure);
+      break;
+    case HyperparameterMethod::kCrossValidation:
+      go_on = FeatureMapByCrossValidation(X, Yr_j, t, &joint, &out.set, &out.failure);
+      break;
+    case HyperparameterMethod::kFixed:
+      joint.summary().method_description =
+          "fixed defaults (output scale = torque RMS, noise 10% of it)";
+      joint.set_search_message("fixed hyper-parameters: nothing to search");
+      break;
+  }
+  out.aborted = joint.aborted();
+  out.ok = go_on && !out.aborted;
+  if (out.ok) {
+    out.summary = joint.Finish(joint.search_end(), joint.search_message());
+    out.summary.hyperparameter_seconds = out.summary.total_seconds;
+  }
+  return out;
+}
+
+// Every joint's search: one after the other, or with FitOptions::num_threads > 1 up to that
+// many joints at once (each then accumulates on num_threads / workers threads; without a
+// MaximumLikelihoodOptions::iteration_callback, which the caller may expect on its thread).
+// FitOptions::callback is called on the calling thread either way: the workers queue their
+// progress, and a kAbort stops them all.
+std::vector<JointSearch> SearchJoints(Fit* fit, const Matrix& X, const Matrix& Y,
+                                      const Matrix& Yr, const ConstVectorRef& t,
+                                      bool kernel_model, const Hyperparameters& start) {
+  const FitOptions& options = fit->options();
+  const int N = static_cast<int>(Y.cols());
+  const int workers = options.evidence.iteration_callback ? 1 : std::min(options.num_threads, N);
+  std::vector<JointSearch> results(static_cast<size_t>(N));
+  if (workers <= 1) {
+    for (int j = 0; j < N; ++j) {
+      results[static_cast<size_t>(j)] =
+          SearchJoint(options, fit->model(), fit->origin(), X, Y, Yr, t, kernel_model, start, j);
+      if (!results[static_cast<size_t>(j)].ok) break;
+    }
+    return results;
+  }
+  std::mutex mutex;
+  std::condition_variable wake;
+  std::deque<FitProgress> queue;
+  std::atomic<bool> stop{false};        // a joint failed, or the caller asked to stop
+  std::atomic<bool> user_abort{false};  // the caller asked to stop
+  std::atomic<int> next{0};
+  int running = workers;
+  FitOptions worker_options = options;
+  worker_options.num_threads = std::max(1, options.num_threads / workers);
+  if (options.callback) {
+    worker_options.callback = [&](const FitProgress& p) {
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        queue.push_back(p);
+      }
+      wake.notify_one();
+      return stop ? FitCallbackReturn::kAbort : FitCallbackReturn::kContinue;
+    };
+  }
+  std::vector<std::thread> threads;
+  for (int w = 0; w < workers; ++w) {
+    threads.emplace_back([&]() {
+      for (int j = next++; j < N && !stop; j = next++) {
+        JointSearch& r = results[static_cast<size_t>(j)];
+        try {
+          r = SearchJoint(worker_options, fit->model(), fit->origin(), X, Y, Yr, t,
+                          kernel_model, start, j);
+        } catch (...) {
+          r.error = std::current_exception();
+        }
+        if (!r.ok) stop = true;
+      }
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        --running;
+      }
+      wake.notify_one();
+    });
+  }
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    while (running > 0 || !queue.empty()) {
+      wake.wait(lock, [&] { return running == 0 || !queue.empty(); });
+      while (!queue.empty()) {
+        const FitProgress p = std::move(queue.front());
+        queue.pop_front();
+        lock.unlock();
+        if (!stop && options.callback(p) == FitCallbackReturn::kAbort) {
+          user_abort = true;
+          stop = true;
+        }
+        lock.lock();
+      }
+    }
+  }
+  for (std::thread& thread : threads) thread.join();
+  for (const JointSearch& r : results) {
+    if (r.error) std::rethrow_exception(r.error);
+  }
+  // A stop asked by the caller's callback is an abort of every joint not yet finished.
+  if (user_abort) {
+    for (JointSearch& r : results) {
+      if (!r.ok && r.failure.empty()) r.aborted = true;
+    }
+  }
+  return results;
+}
+
+// FitOptions::per_joint: each joint's own search (SearchJoints), each joint's summary kept in
+// the fit's summary and merged into it. *h holds the data-derived shared start on entry; on
+// success its per_output holds the joints' sets.
 bool PerJointSearch(const Matrix& X, const Matrix& Y, const Matrix& Yr, const ConstVectorRef& t,
                     bool kernel_model, Fit* fit, Hyperparameters* h, std::string* failure) {
   const FitOptions& options = fit->options();
   FitSummary& summary = fit->summary();
   const int N = static_cast<int>(Y.cols());
+  std::vector<JointSearch> results = SearchJoints(fit, X, Y, Yr, t, kernel_model, *h);
+  // A joint that failed names the failure (the joints stopped because of it are not aborts).
+  for (int j = 0; j < N; ++j) {
+    const JointSearch& r = results[static_cast<size_t>(j)];
+    if (!r.ok && !r.aborted && !r.failure.empty()) {
+      *failure = Format("joint %d: ", j + 1) + r.failure;
+      return false;
+    }
+  }
+  for (const JointSearch& r : results) {
+    if (r.aborted) {
+      fit->MarkAborted();
+      return false;
+    }
+  }
   std::vector<Hyperparameters> sets;
   double initial = 0.0, final_evidence = 0.0, final_prior = 0.0, cv_nmse = 0.0;
   std::string messages;
   bool map = false;
   for (int j = 0; j < N; ++j) {
-    Fit joint(options, fit->model());
-    joint.set_joint(j + 1);
-    Hyperparameters own = *h;
-    own.log_output_scale = h->log_output_scale.segment(j, 1);
-    const Matrix Yr_j = Yr.col(j);
-    bool go_on = true;
-    switch (options.method) {
-      case HyperparameterMethod::kEvidence:
-        go_on = kernel_model ? KernelByEvidence(X, Y, Yr_j, &joint, &own, failure)
-                             : FeatureMapByEvidence(X, Y, Yr_j, &joint, &own, failure);
-        break;
-      case HyperparameterMethod::kCrossValidation:
-        go_on = FeatureMapByCrossValidation(X, Yr_j, t, &joint, &own, failure);
-        break;
-      case HyperparameterMethod::kFixed:
-        joint.summary().method_description =
-            "fixed defaults (output scale = torque RMS, noise 10% of it)";
-        joint.set_search_message("fixed hyper-parameters: nothing to search");
-        break;
-    }
-    if (joint.aborted()) {
-      fit->MarkAborted();
+    JointSearch& r = results[static_cast<size_t>(j)];
+    if (!r.ok) {
+      *failure = Format("joint %d: its search did not run", j + 1);
       return false;
     }
-    if (!go_on) {
-      *failure = Format("joint %d: ", j + 1) + *failure;
-      return false;
-    }
-    FitSummary js = joint.Finish(joint.search_end(), joint.search_message());
-    js.hyperparameter_seconds = js.total_seconds;
+    FitSummary js = std::move(r.summary);
     const std::string name = Format("joint %d: ", j + 1);
     summary.notes.push_back(name + js.method_description);
     for (const std::string& note : js.notes) summary.notes.push_back(name + note);
@@ -574,7 +710,7 @@ bool PerJointSearch(const Matrix& X, const Matrix& Y, const Matrix& Yr, const Co
     }
     messages += (messages.empty() ? "" : "; ") + name + js.message;
     summary.joints.push_back(std::move(js));
-    sets.push_back(std::move(own));
+    sets.push_back(std::move(r.set));
   }
   h->per_output = std::move(sets);
   fit->set_search_message(messages);

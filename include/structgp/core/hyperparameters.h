@@ -53,6 +53,10 @@ struct Hyperparameters {
 
   /// True when each output has its own set (per_output not empty).
   bool is_per_output() const { return !per_output.empty(); }
+  /// Output j's set as a single-output set (one output scale, no per_output): per_output[j],
+  /// or the shared fields with output j's scale. Throws std::out_of_range for a j outside
+  /// the outputs.
+  Hyperparameters Output(Eigen::Index j) const;
 
   /// sigma_n^2 of the shared fields.
   double noise_variance() const;

@@ -118,8 +118,8 @@ struct FitOptions {
   /// kCrossValidation: noise levels sigma_n tried, relative to each joint's torque scale.
   std::vector<double> cv_noise_levels = {0.3, 0.1, 0.03, 0.01, 0.003, 0.001};
 
-  /// Threads of the hyper-parameter search: accumulating Phi^T Phi of feature-map models, and
-  /// each evidence evaluation of lagk's search (EulerLagrangeGPOptions::num_threads, which
+  /// Threads of the hyper-parameter search: accumulating Phi^T Phi of feature-map models, the
+  /// joints searched at once with per_joint, and each evidence evaluation of lagk's search (EulerLagrangeGPOptions::num_threads, which
   /// this replaces; the result equals the one-thread result up to rounding). The final fit
   /// uses RobotModelOptions::batch.
   int num_threads = 1;
@@ -135,7 +135,9 @@ struct FitOptions {
   /// held-out check of all joints; the model holds one posterior per joint (N factors instead of
   /// one). pol, motor, rbf and rbfs; rbd, lag and lagk share their parameters across joints
   /// (std::invalid_argument). The online learner needs the shared set (one posterior factor
-  /// updated per sample).
+  /// updated per sample). With num_threads > 1 up to num_threads joints are searched at once
+  /// (the same result as one at a time on num_threads / workers threads each; one at a time
+  /// when evidence.iteration_callback is set); `callback` is still called on the calling thread.
   bool per_joint = false;
 
   /// Options of the RobotModel that FitModel(spec, ...) builds.
