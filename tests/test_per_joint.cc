@@ -526,8 +526,18 @@ TEST(PerJointModel, DiagnosisNamesTheMissingCoulombOnItsJoint) {
   EXPECT_EQ(out.suggestions.front().joint, 2);
   for (const Suggestion& suggestion : out.suggestions) EXPECT_EQ(suggestion.joint, 2);
   EXPECT_NE(out.features.find("own hyper-parameters"), std::string::npos) << out.features;
+}
 
-  // The diagnosis loop refits with the suggestions, per joint as the diagnosed model was.
+// The diagnosis loop refits with the suggestions, per joint as the diagnosed model was.
+TEST(PerJointModel, TheDiagnosisLoopRefitsPerJoint) {
+  const sim::HiddenEffectScenario& s = Scenario();
+  FitOptions options;
+  options.per_joint = true;
+  options.evidence.optimize_shape = false;
+  options.evidence.optimize_block_scales = false;
+  options.evidence.optimize_noise = false;
+  const FittedModel fit = FitModel(Spec("pol"), s.train.X, s.train.Y, s.train.t, options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
   DiagnosisLoopOptions loop;
   loop.max_rounds = 1;
   loop.fit = options;

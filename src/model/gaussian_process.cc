@@ -1,8 +1,8 @@
 #include "structgp/model/gaussian_process.h"
 
 #include <stdexcept>
-#include <utility>
 #include <string>
+#include <utility>
 
 #include "structgp/core/row_subset.h"
 #include "structgp/core/validate.h"
@@ -378,6 +378,8 @@ GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
   Workspace workspace;
   if (!outputs_.empty()) {
     for (const GaussianProcess& gp : outputs_) workspace.outputs.push_back(gp.MakeWorkspace());
+    // Weight space: phi(x) evaluated once for every output.
+    if (active_ == Form::kWeightSpace) workspace.features.resize(map_->dim());
     workspace.output_mean.resize(1);
     workspace.output_latent.resize(1);
     workspace.output_noisy.resize(1);
@@ -397,19 +399,33 @@ GaussianProcess::Workspace GaussianProcess::MakeWorkspace() const {
   return workspace;
 }
 
-bool GaussianProcess::OutputsReady(Eigen::Index mean_size, const Workspace& workspace) const {
-  return mean_size == num_outputs_ && workspace.outputs.size() == outputs_.size() &&
-         workspace.output_mean.size() == 1 && workspace.output_latent.size() == 1 &&
-         workspace.output_noisy.size() == 1;
+bool GaussianProcess::OutputsReady(const ConstVectorRef& x, Eigen::Index mean_size,
+                                   Workspace& workspace) const {
+  if (mean_size != num_outputs_ || workspace.outputs.size() != outputs_.size() ||
+      workspace.output_mean.size() != 1 || workspace.output_latent.size() != 1 ||
+      workspace.output_noisy.size() != 1) {
+    return false;
+  }
+  if (active_ != Form::kWeightSpace) return true;
+  // The outputs' features, once: each output's posterior is then applied to them.
+  if (x.size() != input_dim() || !x.allFinite() || workspace.features.size() != map_->dim() ||
+      outputs_.front().weight_space_ == nullptr) {
+    return false;
+  }
+  map_->Evaluate(x, workspace.features);
+  return true;
 }
 
 Status GaussianProcess::Predict(const ConstVectorRef& x, VectorRef mean,
                                 Workspace& workspace) const {
   if (!outputs_.empty()) {
-    if (!OutputsReady(mean.size(), workspace)) return Status::kInvalidInput;
+    if (!OutputsReady(x, mean.size(), workspace)) return Status::kInvalidInput;
+    const bool weights = active_ == Form::kWeightSpace;
     for (size_t j = 0; j < outputs_.size(); ++j) {
       const Status status =
-          outputs_[j].Predict(x, workspace.output_mean, workspace.outputs[j]);
+          weights ? outputs_[j].weight_space_->Predict(workspace.features, workspace.output_mean,
+                                                      workspace.outputs[j].weight_space)
+                  : outputs_[j].Predict(x, workspace.output_mean, workspace.outputs[j]);
       if (status != Status::kOk) return status;
       mean[static_cast<Eigen::Index>(j)] = workspace.output_mean[0];
     }
@@ -437,14 +453,19 @@ Status GaussianProcess::PredictWithVariance(const ConstVectorRef& x, VectorRef m
                                             VectorRef latent_variance, VectorRef noisy_variance,
                                             Workspace& workspace) const {
   if (!outputs_.empty()) {
-    if (!OutputsReady(mean.size(), workspace) || latent_variance.size() != num_outputs_ ||
-        noisy_variance.size() != num_outputs_) {
+    if (latent_variance.size() != num_outputs_ || noisy_variance.size() != num_outputs_ ||
+        !OutputsReady(x, mean.size(), workspace)) {
       return Status::kInvalidInput;
     }
+    const bool weights = active_ == Form::kWeightSpace;
     for (size_t j = 0; j < outputs_.size(); ++j) {
-      const Status status = outputs_[j].PredictWithVariance(
-          x, workspace.output_mean, workspace.output_latent, workspace.output_noisy,
-          workspace.outputs[j]);
+      const Status status =
+          weights ? outputs_[j].weight_space_->PredictWithVariance(
+                        workspace.features, workspace.output_mean, workspace.output_latent,
+                        workspace.output_noisy, workspace.outputs[j].weight_space)
+                  : outputs_[j].PredictWithVariance(x, workspace.output_mean,
+                                                    workspace.output_latent,
+                                                    workspace.output_noisy, workspace.outputs[j]);
       if (status != Status::kOk) return status;
       const auto k = static_cast<Eigen::Index>(j);
       mean[k] = workspace.output_mean[0];
@@ -508,9 +529,12 @@ Status GaussianProcess::Add(const ConstVectorRef& x, const ConstVectorRef& y) {
     if (x.size() != input_dim() || !x.allFinite() || y.size() != num_outputs_ || !y.allFinite()) {
       return Status::kInvalidInput;
     }
+    const bool weights = active_ == Form::kWeightSpace && outputs_.front().weight_space_;
+    if (weights) map_->Evaluate(x, phi_);  // once for every output
     for (size_t j = 0; j < outputs_.size(); ++j) {
       y1_[0] = y[static_cast<Eigen::Index>(j)];
-      const Status status = outputs_[j].Add(x, y1_);
+      const Status status =
+          weights ? outputs_[j].weight_space_->Update(phi_, y1_) : outputs_[j].Add(x, y1_);
       if (status != Status::kOk) return status;
     }
     return Status::kOk;

@@ -240,7 +240,8 @@ class GaussianProcess {
   // Per-output hyper-parameters: the fit of every output, and the check of a prediction's
   // sizes and workspace.
   Status FitOutputs(const ConstMatrixRef& X, const ConstMatrixRef& Y);
-  bool OutputsReady(Eigen::Index mean_size, const Workspace& workspace) const;
+  // In weight space also evaluates phi(x) into workspace.features, once for every output.
+  bool OutputsReady(const ConstVectorRef& x, Eigen::Index mean_size, Workspace& workspace) const;
 };
 
 }  // namespace structgp
