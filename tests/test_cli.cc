@@ -819,6 +819,18 @@ UserLogs MakeUserLogs(const TempDir& dir) {
   return logs;
 }
 
+// `structgp diagnose` of the model on the log names the demo's hidden Coulomb friction first.
+void ExpectDiagnosedCoulombOnJoint2(const TempDir& dir, const std::string& model,
+                                    const std::string& data) {
+  const Result diagnose =
+      RunCli(dir, {"diagnose", "--model", model, "--data", data, "--json", dir.File("f.json")});
+  ASSERT_EQ(diagnose.code, 0) << diagnose.err;
+  const Json findings = Json::parse(ReadFile(dir.File("f.json")));
+  ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
+  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
+  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+}
+
 TEST(CliUserLogs, SeveralTrajectoriesInOneFileFitPredictAndDiagnose) {
   TempDir dir;
   const UserLogs logs = MakeUserLogs(dir);
@@ -832,13 +844,7 @@ TEST(CliUserLogs, SeveralTrajectoriesInOneFileFitPredictAndDiagnose) {
       RunCli(dir, {"predict", "--model", model, "--data", logs.trajectories, "--out",
                    dir.File("p.csv")});
   ASSERT_EQ(predict.code, 0) << predict.err;
-  const Result diagnose = RunCli(dir, {"diagnose", "--model", model, "--data", logs.trajectories,
-                                       "--json", dir.File("f.json")});
-  ASSERT_EQ(diagnose.code, 0) << diagnose.err;
-  const Json findings = Json::parse(ReadFile(dir.File("f.json")));
-  ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
-  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
-  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+  ExpectDiagnosedCoulombOnJoint2(dir, model, logs.trajectories);
 }
 
 // Per-joint hyper-parameters from the command line: fit (text and JSON), predict, evaluate and
@@ -860,13 +866,7 @@ TEST(CliUserLogs, PerJointHyperparametersFitPredictEvaluateAndDiagnose) {
   EXPECT_EQ(predict.code, 0) << predict.err;
   const Result evaluate = RunCli(dir, {"evaluate", "--model", model, "--data", logs.trajectories});
   EXPECT_EQ(evaluate.code, 0) << evaluate.err;
-  const Result diagnose = RunCli(dir, {"diagnose", "--model", model, "--data", logs.trajectories,
-                                       "--json", dir.File("f.json")});
-  ASSERT_EQ(diagnose.code, 0) << diagnose.err;
-  const Json findings = Json::parse(ReadFile(dir.File("f.json")));
-  ASSERT_FALSE(findings["suggestions"].empty()) << findings.dump(2);
-  EXPECT_EQ(findings["suggestions"][0]["effect"], "coulomb");
-  EXPECT_EQ(findings["suggestions"][0]["joint"], 2);
+  ExpectDiagnosedCoulombOnJoint2(dir, model, logs.trajectories);
 
   const Result replay = RunCli(dir, {"replay", "--data", logs.trajectories, "--model", model});
   EXPECT_EQ(replay.code, 2);

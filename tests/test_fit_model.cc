@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "demo_scenario.h"
+
 #include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/hyper/cross_validation.h"
@@ -20,23 +22,9 @@
 namespace structgp {
 namespace {
 
-// A slow two-link log with Coulomb friction on joint 2 (seed 3), as the demo simulates it.
-const sim::HiddenEffectScenario& Scenario() {
-  static const sim::HiddenEffectScenario scenario = [] {
-    sim::HiddenEffectOptions o;
-    o.effect = sim::HiddenEffect::kCoulomb;
-    o.joint = 2;
-    o.seed = 3;
-    return sim::MakeHiddenEffectScenario(sim::TwoLinkArm(), o);
-  }();
-  return scenario;
-}
+using testing::Spec;
 
-ModelSpec Spec(const std::string& model, const std::string& effects = "") {
-  ModelSpec spec = ParseModelSpec(model);
-  if (!effects.empty()) spec.effects = ParseEffectList(effects);
-  return spec;
-}
+const sim::HiddenEffectScenario& Scenario() { return testing::DemoScenario(); }
 
 Matrix Predictions(const RobotModel& model, const Matrix& X) {
   Matrix mean, std;

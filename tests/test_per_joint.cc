@@ -20,6 +20,7 @@
 #include <gtest/gtest.h>
 
 #include "alloc_counter.h"
+#include "demo_scenario.h"
 #include "structgp/diagnose/diagnosis.h"
 #include "structgp/diagnose/diagnosis_loop.h"
 #include "structgp/feature/feature_hyperparameters.h"
@@ -36,22 +37,9 @@
 namespace structgp {
 namespace {
 
-const sim::HiddenEffectScenario& Scenario() {
-  static const sim::HiddenEffectScenario scenario = [] {
-    sim::HiddenEffectOptions o;
-    o.effect = sim::HiddenEffect::kCoulomb;
-    o.joint = 2;
-    o.seed = 3;
-    return sim::MakeHiddenEffectScenario(sim::TwoLinkArm(), o);
-  }();
-  return scenario;
-}
+using testing::Spec;
 
-ModelSpec Spec(const std::string& model, const std::string& effects = "") {
-  ModelSpec spec = ParseModelSpec(model);
-  if (!effects.empty()) spec.effects = ParseEffectList(effects);
-  return spec;
-}
+const sim::HiddenEffectScenario& Scenario() { return testing::DemoScenario(); }
 
 Matrix EveryKth(const Matrix& A, int k) {
   Matrix out((A.rows() + k - 1) / k, A.cols());
@@ -506,14 +494,21 @@ TEST(PerJointModel, TheOnlineLearnerAsksForTheSharedSet) {
 
 // The diagnosis of a per-joint model (each joint against its own prior) names the Coulomb
 // friction the model lacks, on its joint.
-TEST(PerJointModel, DiagnosisNamesTheMissingCoulombOnItsJoint) {
-  const sim::HiddenEffectScenario& s = Scenario();
+// pol (without the friction the log has) fitted per joint on the slow log: noise and output
+// scales by evidence, the default shape and block scales, as test_diagnosis fits its models.
+FitOptions PerJointNoiseAndScales() {
   FitOptions options;
   options.per_joint = true;
   options.evidence.optimize_shape = false;
   options.evidence.optimize_block_scales = false;
   options.evidence.optimize_noise = false;
-  const FittedModel fit = FitModel(Spec("pol"), s.train.X, s.train.Y, s.train.t, options);
+  return options;
+}
+
+TEST(PerJointModel, DiagnosisNamesTheMissingCoulombOnItsJoint) {
+  const sim::HiddenEffectScenario& s = Scenario();
+  const FittedModel fit =
+      FitModel(Spec("pol"), s.train.X, s.train.Y, s.train.t, PerJointNoiseAndScales());
   ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
   DiagnosisOptions d;
   d.training_inputs = s.train.X;
@@ -531,11 +526,7 @@ TEST(PerJointModel, DiagnosisNamesTheMissingCoulombOnItsJoint) {
 // The diagnosis loop refits with the suggestions, per joint as the diagnosed model was.
 TEST(PerJointModel, TheDiagnosisLoopRefitsPerJoint) {
   const sim::HiddenEffectScenario& s = Scenario();
-  FitOptions options;
-  options.per_joint = true;
-  options.evidence.optimize_shape = false;
-  options.evidence.optimize_block_scales = false;
-  options.evidence.optimize_noise = false;
+  const FitOptions options = PerJointNoiseAndScales();
   const FittedModel fit = FitModel(Spec("pol"), s.train.X, s.train.Y, s.train.t, options);
   ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
   DiagnosisLoopOptions loop;
