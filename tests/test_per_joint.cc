@@ -246,6 +246,14 @@ TEST(PerJointGaussianProcess, RefusesBadSetsAndSharedForms) {
   EXPECT_THROW(FitModel(Spec("lagk"), d.X, d.Y, Vector(), options), std::invalid_argument);
 }
 
+// The same set, bit for bit.
+void ExpectSameSet(const Hyperparameters& a, const Hyperparameters& b) {
+  EXPECT_EQ(a.shape, b.shape);
+  EXPECT_EQ(a.log_block_scale, b.log_block_scale);
+  EXPECT_EQ(a.log_noise_std, b.log_noise_std);
+  EXPECT_EQ(a.log_output_scale, b.log_output_scale);
+}
+
 // The per-joint workflow equals each joint's search assembled by hand from the lower layers:
 // its torque's statistics, the profile of noise and scale, LBFGS from 3 starts with the prior.
 TEST(PerJointFit, EqualsEachJointsSearchByHand) {
@@ -285,11 +293,7 @@ TEST(PerJointFit, EqualsEachJointsSearchByHand) {
     EXPECT_EQ(js.final_negative_log_evidence, s.final_negative_log_likelihood);
     evidence += s.final_negative_log_likelihood;
     iterations += js.iterations;
-    const Hyperparameters& got = fit.model.hyperparameters().per_output[static_cast<size_t>(j)];
-    EXPECT_EQ(got.shape, own.shape);
-    EXPECT_EQ(got.log_block_scale, own.log_block_scale);
-    EXPECT_EQ(got.log_noise_std, own.log_noise_std);
-    EXPECT_EQ(got.log_output_scale, own.log_output_scale);
+    ExpectSameSet(fit.model.hyperparameters().per_output[static_cast<size_t>(j)], own);
     hyper.per_output.push_back(own);
   }
   EXPECT_DOUBLE_EQ(fit.summary.final_negative_log_evidence, evidence);
@@ -333,12 +337,8 @@ TEST(PerJointFit, JointsOnThreadsGiveTheOneThreadResult) {
   ASSERT_TRUE(b.summary.IsUsable()) << b.summary.message;
   EXPECT_FALSE(other_thread) << "the callback was called on a worker thread";
   for (int j = 0; j < 2; ++j) {
-    const Hyperparameters& x = a.model.hyperparameters().per_output[static_cast<size_t>(j)];
-    const Hyperparameters& y = b.model.hyperparameters().per_output[static_cast<size_t>(j)];
-    EXPECT_EQ(x.shape, y.shape);
-    EXPECT_EQ(x.log_block_scale, y.log_block_scale);
-    EXPECT_EQ(x.log_noise_std, y.log_noise_std);
-    EXPECT_EQ(x.log_output_scale, y.log_output_scale);
+    ExpectSameSet(a.model.hyperparameters().per_output[static_cast<size_t>(j)],
+                  b.model.hyperparameters().per_output[static_cast<size_t>(j)]);
   }
   Matrix pa, pb;
   a.model.PredictRows(d.X, &pa);
