@@ -479,40 +479,28 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   // on inducing states chosen among these rows.
   std::shared_ptr<const FeatureMap> base_map = model.feature_map();
   Hyperparameters base_hyper = model.hyperparameters();
-  Diagnosis out;
+  // Per-joint hyper-parameters: one joint at a time against that joint's own set (and, without
+  // a feature map, its own kernel), each column keeping its joint's output scale (only this
+  // joint's column is read); the branches below then serve it as they serve a shared set.
+  std::unique_ptr<Kernel> joint_kernel;
+  std::string per_joint_text;
   if (model.per_joint()) {
     if (only_joint < 1) {
       throw std::logic_error("Diagnose: a model with per-joint hyper-parameters is diagnosed per "
                              "joint");
     }
-    // The joint's own set; each column keeps its joint's output scale (only this joint's
-    // column is read).
-    const Hyperparameters& own = base_hyper.per_output[static_cast<size_t>(only_joint - 1)];
-    Vector scales(N);
-    for (int j = 0; j < N; ++j) {
-      scales[j] = base_hyper.per_output[static_cast<size_t>(j)].log_output_scale[0];
-    }
-    if (base_map) {
-      Hyperparameters h = own;
-      h.log_output_scale = scales;
-      base_hyper = h;
-      out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) +
-                     ") with each joint's own hyper-parameters, one joint at a time";
-    } else {
-      const std::unique_ptr<Kernel> kernel = model.kernel()->WithParameters(own.shape);
-      const Matrix Z =
-          SelectInducingStates(*kernel, X, std::min(options.nystrom_features, m / 2));
-      base_map = std::make_shared<NystromFeatureMap>(*kernel, Z);
-      Hyperparameters h = DefaultHyperparameters(*base_map, N);
-      h.log_noise_std = own.log_noise_std;
-      h.log_output_scale = scales;
-      base_hyper = h;
-      out.features = "Nystrom features of each joint's own kernel on " +
-                     std::to_string(Z.rows()) + " inducing states chosen among the rows (D = " +
-                     std::to_string(base_map->dim()) + "), one joint at a time";
-    }
-  } else if (base_map) {
-    out.features = "the model's feature map (D = " + std::to_string(base_map->dim()) + ")";
+    Hyperparameters own = base_hyper.Output(only_joint - 1);
+    own.log_output_scale.resize(N);
+    for (int j = 0; j < N; ++j) own.log_output_scale[j] = base_hyper.Output(j).log_output_scale[0];
+    base_hyper = own;
+    if (!base_map) joint_kernel = model.kernel()->WithParameters(own.shape);
+    per_joint_text = ", with each joint's own hyper-parameters, one joint at a time";
+  }
+  const Kernel* kernel = joint_kernel ? joint_kernel.get() : model.kernel();
+  Diagnosis out;
+  if (base_map) {
+    out.features =
+        "the model's feature map (D = " + std::to_string(base_map->dim()) + ")" + per_joint_text;
   } else if (model.regressor_map()) {
     if (only_joint < 1) throw std::logic_error("Diagnose: a regressor model is diagnosed per joint");
     base_map = std::make_shared<RegressorFeatureMap>(model.regressor_map(), only_joint - 1);
@@ -541,16 +529,16 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
                    " inducing states covering the rows (D = " + std::to_string(base_map->dim()) +
                    "), one joint at a time";
   } else {
-    const Matrix Z = SelectInducingStates(*model.kernel(), X,
-                                          std::min(options.nystrom_features, m / 2));
-    base_map = std::make_shared<NystromFeatureMap>(*model.kernel(), Z);
+    const Matrix Z =
+        SelectInducingStates(*kernel, X, std::min(options.nystrom_features, m / 2));
+    base_map = std::make_shared<NystromFeatureMap>(*kernel, Z);
     Hyperparameters h = DefaultHyperparameters(*base_map, N);
     h.log_noise_std = base_hyper.log_noise_std;
     h.log_output_scale = base_hyper.log_output_scale;
     base_hyper = h;
     out.features = "Nystrom features of the model's kernel on " + std::to_string(Z.rows()) +
                    " inducing states chosen among the rows (D = " +
-                   std::to_string(base_map->dim()) + ")";
+                   std::to_string(base_map->dim()) + ")" + per_joint_text;
   }
   const int m_log = m - log_begin;
   out.num_samples = m_log;

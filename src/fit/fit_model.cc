@@ -8,6 +8,7 @@
 #include <exception>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <cmath>
 #include <limits>
@@ -36,6 +37,7 @@ using internal::Table;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // In the method description of a search with a prior (every form).
 constexpr char kMapPhrase[] = " with a prior on the log hyper-parameters (MAP)";
+constexpr char kFixedDescription[] = "fixed defaults (output scale = torque RMS, noise 10% of it)";
 
 std::string Number(double value) { return Format("%.6g", value); }
 
@@ -173,18 +175,12 @@ class Fit {
 using Search =
     std::function<MaximumLikelihoodSummary(const MaximumLikelihoodOptions&, Hyperparameters*)>;
 
-// One joint's set (one output scale) as a set shared by all N joints of Y (m x N): its output
-// scale on `joint` (1-based), each other joint's torque RMS on the others. The held-out check
-// of that joint's candidates reads that joint alone, and a shared set fits every column with
-// one factor.
-Hyperparameters SharedFor(const Hyperparameters& own, int joint, const ConstMatrixRef& Y) {
+// One joint's set (one output scale) as a set shared by all num_joints joints, each with that
+// joint's scale. The held-out check of that joint's candidates reads that joint alone, and a
+// shared set fits every column with one factor, which the other columns' scales do not change.
+Hyperparameters SharedFor(const Hyperparameters& own, int num_joints) {
   Hyperparameters shared = own;
-  shared.log_output_scale.resize(Y.cols());
-  for (Eigen::Index j = 0; j < Y.cols(); ++j) {
-    const double rms = Y.rows() > 0 ? std::sqrt(Y.col(j).squaredNorm() / Y.rows()) : 1.0;
-    shared.log_output_scale[j] = std::log(rms > 1e-12 ? rms : 1.0);
-  }
-  shared.log_output_scale[joint - 1] = own.log_output_scale[0];
+  shared.log_output_scale = Vector::Constant(num_joints, own.log_output_scale[0]);
   return shared;
 }
 
@@ -224,8 +220,9 @@ bool SearchAndCheck(const Matrix& X, const Matrix& Y, Fit* fit, Hyperparameters*
       const Hyperparameters& candidate = s.starts[static_cast<size_t>(k)].hyperparameters;
       const FitCheck c =
           fit->joint() > 0
-              ? CheckOnHeldOutBlocks(*fit->model(), SharedFor(candidate, fit->joint(), Y),
-                                     X, Y, options.check, fit->joint())
+              ? CheckOnHeldOutBlocks(*fit->model(),
+                                     SharedFor(candidate, static_cast<int>(Y.cols())), X, Y,
+                                     options.check, fit->joint())
               : CheckOnHeldOutBlocks(*fit->model(), candidate, X, Y, options.check);
       if (i == 0) best_check = c;
       if (!fit->Report(Format("start %d: %s", k + 1, c.message.c_str()))) return false;
@@ -551,8 +548,7 @@ JointSearch SearchJoint(const FitOptions& options, RobotModel* model,
       go_on = FeatureMapByCrossValidation(X, Yr_j, t, &joint, &out.set, &out.failure);
       break;
     case HyperparameterMethod::kFixed:
-      joint.summary().method_description =
-          "fixed defaults (output scale = torque RMS, noise 10% of it)";
+      joint.summary().method_description = kFixedDescription;
       joint.set_search_message("fixed hyper-parameters: nothing to search");
       break;
   }
@@ -731,8 +727,7 @@ bool PerJointSearch(const Matrix& X, const Matrix& Y, const Matrix& Yr, const Co
           options.cv_folds, cv_nmse);
       break;
     case HyperparameterMethod::kFixed:
-      summary.method_description =
-          "fixed defaults (output scale = torque RMS, noise 10% of it), one set per joint";
+      summary.method_description = std::string(kFixedDescription) + ", one set per joint";
       break;
   }
   return true;
@@ -1030,7 +1025,7 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
             "fixed defaults (sigma " + Number(sigma) +
             ", the torques' mean square shared by the parts, noise 10% of each joint's RMS)";
       } else {
-        summary.method_description = "fixed defaults (output scale = torque RMS, noise 10% of it)";
+        summary.method_description = kFixedDescription;
       }
       fit.set_search_message("fixed hyper-parameters: nothing to search");
       break;
@@ -1191,22 +1186,28 @@ std::string FitReport(const RobotModel& model, const FitSummary& summary) {
     // One column per joint, each its own set (one output scale).
     rows[0].resize(1);
     for (int j = 1; j <= N; ++j) rows[0].push_back(Format("tau%d", j));
+    // The names of one joint's set: a feature map's single-output layout, or the kernel's
+    // parameters, then the noise and the output scale.
+    FreeHyperparameters all;
+    all.output_scales = true;
+    std::optional<HyperparameterLayout> layout;
     std::vector<std::string> names;
+    if (model.feature_map()) {
+      layout.emplace(*model.feature_map(), 1, all);
+      names = layout->names();
+      for (std::string& name : names) {
+        if (name.rfind("log_output_scale", 0) == 0) name = "log_output_scale";
+      }
+    } else {
+      names = model.kernel()->parameter_names();
+      names.push_back("log_noise_std");
+      names.push_back("log_output_scale");
+    }
     std::vector<Vector> values;
     for (const Hyperparameters& own : h.per_output) {
-      if (model.feature_map()) {
-        FreeHyperparameters all;
-        all.output_scales = true;
-        const HyperparameterLayout layout(*model.feature_map(), 1, all);
-        names = layout.names();
-        for (std::string& name : names) {
-          if (name.rfind("log_output_scale", 0) == 0) name = "log_output_scale";
-        }
-        values.push_back(layout.Flatten(own));
+      if (layout) {
+        values.push_back(layout->Flatten(own));
       } else {
-        names = model.kernel()->parameter_names();
-        names.push_back("log_noise_std");
-        names.push_back("log_output_scale");
         Vector v(own.shape.size() + 2);
         v << own.shape, own.log_noise_std, own.log_output_scale[0];
         values.push_back(v);
