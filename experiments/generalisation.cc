@@ -108,6 +108,7 @@ struct Flags {
   std::string lagk_inducing_rule = "cover";  // or "stride"
   std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
   std::string prior = "gaussian";  // of every type-II search (the CLI's --prior)
+  bool calibrate_bands = true;     // FitOptions::calibrate_bands (the CLI's default)
   double noise = 0.01;
   // "train": noise and friction sized by the training log's RMS torques and velocities;
   // "default-slow": by the default slow log's (50 via points in 50 s), whatever the training
@@ -459,7 +460,8 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
 
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
              const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows,
-             const EulerLagrangeGPOptions& lagk_options, bool components) {
+             const EulerLagrangeGPOptions& lagk_options, bool components,
+             bool calibrate_bands) {
   Row row;
   row.robot = robot_name;
   row.kase = case_name;
@@ -560,6 +562,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     }
     FitOptions options;
     options.per_joint = variant == "joint";
+    options.calibrate_bands = calibrate_bands;  // --no-calibrate-bands
     options.evidence.prior.family = lagk_options.prior.family;  // --prior, for every search
     options.num_threads = lagk_options.num_threads;              // --threads
     options.model.batch.num_threads = lagk_options.num_threads;
@@ -638,7 +641,8 @@ int Run(const Flags& flags, int argc, char** argv) {
       if (!f.write_logs.empty()) WriteLogs(f.write_logs, robot_name + "_" + case_name, c);
       for (const std::string& model : f.models) {
         Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows,
-                           f.lagk_hyper_rows, lagk_options, f.components);
+                           f.lagk_hyper_rows, lagk_options, f.components,
+                           f.calibrate_bands);
         if (f.components) row.component_size = ComponentSizes(c);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
                     row.kase.c_str(), row.model.c_str(),
@@ -763,6 +767,9 @@ int main(int argc, char** argv) {
                     "the sigma grid of lagk's type-II maximum likelihood")
       ->delimiter(',')
       ->check(structgp::GreaterThan(0));
+  app.add_flag("!--no-calibrate-bands", f.calibrate_bands,
+               "keep the posterior's own bands (structgp fit --no-calibrate-bands); by default "
+               "the fits calibrate them on their held-out check, as the CLI does");
   app.add_flag("--components", f.components,
                "also split each model's test error into its gravity, inertial and velocity "
                "(Coriolis + friction) terms against the simulation's (reference, lagk and "

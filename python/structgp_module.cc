@@ -305,7 +305,8 @@ class Model {
 
   Model& Fit(const py::object& X, const py::object& Y, const py::object& t,
              const std::string& hyper, const py::object& starts, const std::string& prior,
-             bool check, bool verbose, const py::object& start_from, bool per_joint) {
+             bool check, bool verbose, const py::object& start_from, bool per_joint,
+             bool calibrate_bands) {
     const Matrix states = AsMatrix(X, "X");
     const Matrix torques = AsMatrix(Y, "Y");
     const Vector times = AsVector(t, "t");
@@ -320,6 +321,7 @@ class Model {
     o.check.enabled = check;
     o.evidence.verbose = verbose;
     o.per_joint = per_joint;
+    o.calibrate_bands = calibrate_bands;
     if (!start_from.is_none()) {
       const RobotModel& from = start_from.cast<const Model&>().fitted("start_from");
       if (spec_.base != BaseModel::kLagk || o.method != HyperparameterMethod::kEvidence ||
@@ -471,13 +473,15 @@ save / Model.load use the CLI's model files.
            py::kw_only(), py::arg("hyper") = "ml", py::arg("starts") = py::none(),
            py::arg("prior") = "gaussian", py::arg("check") = true, py::arg("verbose") = false,
            py::arg("start_from") = py::none(), py::arg("per_joint") = false,
-           py::return_value_policy::reference_internal,
+           py::arg("calibrate_bands") = true, py::return_value_policy::reference_internal,
            "Fits the model to X (m x 3N), Y (m x N) and optional times t (m), rows in time "
            "order: hyper 'ml' (type-II maximum likelihood with a prior, `starts` runs), 'cv' "
            "(blocked cross-validation) or 'fixed' (the defaults). start_from: a fitted lagk "
            "Model whose hyper-parameters start a lagk model's evidence search, at its sigma "
            "(`structgp fit --start-from`). per_joint: each joint its own hyper-parameters "
-           "(`structgp fit --per-joint`; pol, motor, rbf, rbfs). Returns self; the summary is in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
+           "(`structgp fit --per-joint`; pol, motor, rbf, rbfs). calibrate_bands: scale each joint's "
+           "latent variance so that its 2 sigma band covers 95% of the held-out check's torques "
+           "(False: `structgp fit --no-calibrate-bands`). Returns self; the summary is in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
       .def("predict", &Model::Predict, py::arg("X"), py::arg("t") = py::none(),
            py::arg("return_std") = false,
            "Predicted torques (m x N); with return_std=True also the posterior standard "
@@ -521,6 +525,12 @@ save / Model.load use the CLI's model files.
       .def_property_readonly("form", [](const Model& s) { return ToString(s.fitted("form").gp().form()); })
       .def_property_readonly("per_joint", [](const Model& s) { return s.fitted("per_joint").per_joint(); },
                              "True when each joint has its own hyper-parameters (fit(per_joint=True)).")
+      .def_property_readonly("latent_variance_scale",
+                             [](const Model& s) -> Vector {
+                               return s.fitted("latent_variance_scale").latent_variance_scale();
+                             },
+                             "Each joint's factor on the latent variance of predict(return_std="
+                             "True) (N; all 1 unless fit calibrated the bands)")
       .def_property_readonly("noise_std",
                              [](const Model& s) -> Vector {
                                return s.fitted("noise_std").hyperparameters().noise_stds();

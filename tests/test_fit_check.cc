@@ -219,6 +219,7 @@ TEST(FitModel, WarnsOfBandsTooNarrowOnTheHeldOutBlocks) {
   const Log log = SaturatingLog(/*spike_at_end=*/false, 605);
   FitOptions options;
   options.check.min_coverage = 1.0;  // every joint under 100% is named
+  options.calibrate_bands = false;   // with the calibration the finding is a note (below)
   const FittedModel fit = FitModel(ParseModelSpec("motor"), log.X, log.Y, Vector(), options);
   ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
   ASSERT_TRUE(fit.summary.check.ran);
@@ -231,6 +232,18 @@ TEST(FitModel, WarnsOfBandsTooNarrowOnTheHeldOutBlocks) {
           std::lround(100.0 * coverage))) + "% of the held-out torques";
   EXPECT_NE(fit.summary.warnings[0].find(expected), std::string::npos) << fit.summary.warnings[0];
   EXPECT_NE(ToJson(fit.model, fit.summary).find("\"coverage\""), std::string::npos);
+
+  // Calibrated (the default), the same finding is a note on the bands before calibration.
+  options.calibrate_bands = true;
+  const FittedModel calibrated =
+      FitModel(ParseModelSpec("motor"), log.X, log.Y, Vector(), options);
+  EXPECT_TRUE(calibrated.summary.warnings.empty());
+  bool noted = false;
+  for (const std::string& note : calibrated.summary.notes) {
+    noted = noted || note.find("before their calibration, " + expected) !=
+                         std::string::npos;
+  }
+  EXPECT_TRUE(noted);
 
   options.check.min_coverage = 0.0;
   const FittedModel quiet = FitModel(ParseModelSpec("motor"), log.X, log.Y, Vector(), options);

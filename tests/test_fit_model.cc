@@ -3,6 +3,7 @@
 // predictions must be bit-identical. Also the callback (progress, abort), the options'
 // validation and the errors for caller mistakes.
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "demo_scenario.h"
 
 #include "structgp/core/row_subset.h"
+#include "structgp/fit/fit_check.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/hyper/cross_validation.h"
 #include "structgp/hyper/evidence.h"
@@ -25,6 +27,14 @@ namespace {
 using testing::Spec;
 
 const sim::HiddenEffectScenario& Scenario() { return testing::DemoScenario(); }
+
+// FitModel's last step by hand: the bands calibrated on the held-out check of h
+// (FitOptions::calibrate_bands, on by default).
+void Calibrate(const Hyperparameters& h, const Matrix& X, const Matrix& Y, RobotModel* model) {
+  const FitCheck check = CheckOnHeldOutBlocks(*model, h, X, Y, FitCheckOptions());
+  ASSERT_TRUE(check.ran);
+  model->SetLatentVarianceScale(check.latent_variance_scale.cwiseMax(1.0));
+}
 
 Matrix Predictions(const RobotModel& model, const Matrix& X) {
   Matrix mean, std;
@@ -106,6 +116,7 @@ TEST(FitModel, CrossValidationEqualsTheStepsByHand) {
   const Hyperparameters h = SelectByCrossValidation(map, folds, candidates, &results, &best);
   ASSERT_GE(best, 0);
   ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  Calibrate(h, d.X, d.Y, &reference);
   EXPECT_EQ(fit.summary.cv_mean_nmse, results[static_cast<size_t>(best)].mean_nmse);
   EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
 }
@@ -118,6 +129,7 @@ TEST(FitModel, FixedIsTheModelsDefaults) {
   ASSERT_EQ(fit.summary.termination, FitTermination::kConverged);
   RobotModel reference(Spec("motor+fri"), 2);
   ASSERT_EQ(reference.Fit(d.X, d.Y), Status::kOk);
+  Calibrate(reference.DefaultHyperparameters(d.Y), d.X, d.Y, &reference);
   EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
 }
 
@@ -146,6 +158,7 @@ TEST(FitModel, KernelEvidenceOnTheEvenlySpacedSubset) {
                                options.evidence, &h);
   ASSERT_TRUE(s.usable());
   ASSERT_EQ(reference.Fit(d.X, d.Y, h), Status::kOk);
+  Calibrate(h, d.X, d.Y, &reference);
   EXPECT_EQ(Predictions(fit.model, d.X), Predictions(reference, d.X));
 }
 
@@ -168,7 +181,12 @@ TEST(FitModel, CallbackSeesProgressAndIterations) {
   EXPECT_GE(iterations, fit.summary.iterations);
   ASSERT_GE(messages.size(), 4u);
   EXPECT_NE(messages.front().find("accumulating Phi^T Phi"), std::string::npos);
-  EXPECT_NE(messages.back().find("fitting the model to"), std::string::npos);
+  // The last lines: the fit to every row, then (FitOptions::calibrate_bands) the bands.
+  const auto fitting = std::find_if(messages.begin(), messages.end(), [](const std::string& m) {
+    return m.find("fitting the model to") != std::string::npos;
+  });
+  ASSERT_NE(fitting, messages.end());
+  EXPECT_LE(messages.end() - fitting, 2);
 }
 
 TEST(FitModel, CallbackAbortLeavesTheModelUnfitted) {

@@ -96,6 +96,36 @@ def test_a_per_joint_fit_from_python_is_the_programs(cli, demo, tmp_path):
     assert not shared.per_joint
 
 
+def test_calibrated_bands_from_python_are_the_programs(cli, demo, tmp_path):
+    """pol without the friction the log holds: joint 2's held-out band is too narrow, and the
+    fit scales its latent variance (the default); --no-calibrate-bands keeps the posterior's."""
+    calibrated, plain = tmp_path / "calibrated.json", tmp_path / "plain.json"
+    run(cli, "fit", "--data", demo / "train.csv", "--model", "pol", "--out", calibrated, "--quiet")
+    run(cli, "fit", "--data", demo / "train.csv", "--model", "pol", "--no-calibrate-bands",
+        "--out", plain, "--quiet")
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    model = structgp.Model(base="pol").fit(train.X, train.Y, train.t)
+    unscaled = structgp.Model(base="pol").fit(train.X, train.Y, train.t, calibrate_bands=False)
+    kappa = model.latent_variance_scale
+    assert kappa[1] > 1.0
+    np.testing.assert_array_equal(unscaled.latent_variance_scale, np.ones(2))
+    np.testing.assert_allclose(kappa, model.summary.to_dict()["summary"]["check"]
+                               ["latent_variance_scale"], rtol=0, atol=0)
+    for fitted, path in ((model, calibrated), (unscaled, plain)):
+        reference = structgp.Model.load(str(path))
+        np.testing.assert_array_equal(reference.latent_variance_scale,
+                                      fitted.latent_variance_scale)
+        mean, std = fitted.predict(test.X, return_std=True)
+        ref_mean, ref_std = reference.predict(test.X, return_std=True)
+        np.testing.assert_allclose(mean, ref_mean, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(std, ref_std, rtol=1e-10, atol=1e-10)
+    mean, std = model.predict(test.X, return_std=True)
+    plain_mean, plain_std = unscaled.predict(test.X, return_std=True)
+    np.testing.assert_array_equal(mean, plain_mean)
+    np.testing.assert_allclose(std, plain_std * np.sqrt(kappa), rtol=1e-12)
+
+
 def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     findings = tmp_path / "findings.json"
     run(cli, "diagnose", "--model", demo / "model_before.json", "--data", demo / "train.csv",

@@ -58,13 +58,18 @@ class FitCommand : public Command {
                   "scale), searched on its torque alone: pol, motor, rbf, rbfs; about N times "
                   "the search time; the online learner (replay) needs the shared set");
     cmd->add_flag("--no-check", no_check_,
-                  "Skip the check of the hyper-parameters on held-out blocks of the data");
+                  "Skip the check of the hyper-parameters on held-out blocks of the data (and "
+                  "so the calibration of the bands)");
+    cmd->add_flag("--no-calibrate-bands", no_calibrate_bands_,
+                  "Keep the posterior's own 2 sigma bands: do not scale a joint's latent "
+                  "variance so that its band covers 95% of the held-out blocks' torques");
     cmd->add_option("--folds", options_.cv_folds, "Contiguous folds of --hyper cv")
         ->check(CLI::Range(2, 1000))
         ->capture_default_str();
     cmd->add_option("--ml-max-rows", options_.max_evidence_rows,
-                    "rbf/rbfs with --hyper ml: rows (evenly spaced) on which the kernel's "
-                    "hyper-parameters are fitted; the model then uses all rows")
+                    "Kernel-form models (rbf, rbfs, pol from 4 joints) with --hyper ml: rows "
+                    "(evenly spaced) on which the kernel's hyper-parameters are fitted, "
+                    "O(rows^3) per evaluation; the model then uses all rows")
         ->check(CLI::Range(10, 1000000))
         ->capture_default_str();
     cmd->add_option("--threads", options_.num_threads,
@@ -120,6 +125,7 @@ class FitCommand : public Command {
     options_.method = ParseHyperMethod(hyper_);
     FromString(prior_, &options_.evidence.prior.family);  // checked by the flag
     options_.check.enabled = !no_check_;
+    options_.calibrate_bands = !no_calibrate_bands_;
     const Progress progress("fit", quiet_);
     progress.Line("reading " + data_);
     const RobotData data = ReadData(data_);
@@ -161,6 +167,7 @@ class FitCommand : public Command {
   std::string data_, model_, effects_, hyper_ = "ml", out_, json_, prior_ = "gaussian";
   std::string start_from_;
   bool no_check_ = false;
+  bool no_calibrate_bands_ = false;
   FitOptions options_;
   RobotFlags robot_;
   int max_kernel_rows_ = kDefaultMaxKernelRows;

@@ -37,6 +37,10 @@ bool FitCheckOptions::IsValid(std::string* error) const {
     return fail(Format("FitCheckOptions::max_fraction: expected a value in [0, 1), got %g",
                        max_fraction));
   }
+  if (!(target_coverage > 0.0 && target_coverage < 1.0)) {
+    return fail(Format("FitCheckOptions::target_coverage: expected a value in (0, 1), got %g",
+                       target_coverage));
+  }
   if (!(min_coverage >= 0.0 && min_coverage <= 1.0)) {
     return fail(Format("FitCheckOptions::min_coverage: expected a value in [0, 1], got %g",
                        min_coverage));
@@ -65,6 +69,37 @@ Vector BandCoverage(const ConstMatrixRef& mean, const ConstMatrixRef& latent_std
   }
   return coverage;
 }
+
+namespace {
+
+// The smallest kappa in [1, kMaxLatentVarianceScale] with which at least `target` of the rows
+// (squared error e, latent variance v) satisfy e <= 4 (kappa v + noise_var): each row is
+// covered from kappa_i = (e / 4 - noise_var) / v on, so kappa is the target quantile of the
+// kappa_i. A row that no kappa covers (v = 0 and e beyond the noise band) counts as never.
+double LatentVarianceScale(const std::vector<std::pair<double, double>>& rows,
+                           double noise_var, double target) {
+  if (rows.empty()) return 1.0;
+  std::vector<double> needed;
+  needed.reserve(rows.size());
+  for (const auto& [e, v] : rows) {
+    const double excess = e / 4.0 - noise_var;
+    if (excess <= 0.0) {
+      needed.push_back(0.0);
+    } else if (v > 0.0 && std::isfinite(excess / v)) {
+      needed.push_back(excess / v);
+    } else {
+      needed.push_back(std::numeric_limits<double>::infinity());
+    }
+  }
+  const size_t k = static_cast<size_t>(
+      std::min<double>(static_cast<double>(needed.size()) - 1.0,
+                       std::ceil(target * static_cast<double>(needed.size())) - 1.0));
+  std::nth_element(needed.begin(), needed.begin() + static_cast<std::ptrdiff_t>(k),
+                   needed.end());
+  return std::clamp(needed[k], 1.0, kMaxLatentVarianceScale);
+}
+
+}  // namespace
 
 FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hyper,
                               const ConstMatrixRef& X, const ConstMatrixRef& Y,
@@ -99,6 +134,9 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   std::vector<int> confident(static_cast<size_t>(N), 0);
   std::vector<double> excursion(static_cast<size_t>(N), 0.0);
   std::vector<int> covered(static_cast<size_t>(N), 0);
+  // Per joint and held-out row: the squared error and the latent variance, for the latent
+  // variance scale.
+  std::vector<std::vector<std::pair<double, double>>> errors(static_cast<size_t>(N));
   int skipped = 0;
   for (const auto& [begin, end] : ContiguousFolds(m, options.folds)) {
     const int held = end - begin;
@@ -129,6 +167,9 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
           ++confident[static_cast<size_t>(j)];
           continue;
         }
+        const double residual = Ys(begin + i, j) - mu;
+        errors[static_cast<size_t>(j)].emplace_back(residual * residual,
+                                                    latent_std(i, j) * latent_std(i, j));
         const double std = std::hypot(latent_std(i, j), noise_std[j]);
         if (outside > 0.0) {
           const bool sure = outside > options.confidence_sigmas * std;
@@ -147,11 +188,15 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   }
   check.ran = true;
   check.coverage.resize(N);
+  check.latent_variance_scale.resize(N);
   for (int j = 0; j < N; ++j) {
     if (!counts(j)) {
       check.coverage[j] = std::numeric_limits<double>::quiet_NaN();
+      check.latent_variance_scale[j] = std::numeric_limits<double>::quiet_NaN();
       continue;
     }
+    check.latent_variance_scale[j] = LatentVarianceScale(
+        errors[static_cast<size_t>(j)], noise_std[j] * noise_std[j], options.target_coverage);
     check.coverage[j] = static_cast<double>(covered[static_cast<size_t>(j)]) / check.rows;
     const double fraction = static_cast<double>(absurd[static_cast<size_t>(j)]) / check.rows;
     if (fraction > check.worst_fraction) {

@@ -767,8 +767,10 @@ std::string JointsText(const std::vector<int>& joints) {
 }
 
 // The warning for joints whose 2 sigma band covered less than min_coverage of their held-out
-// torques in the held-out check (none when it did not run or every band covered enough).
-std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_coverage) {
+// torques in the held-out check (none when it did not run or every band covered enough); with
+// calibrated, the same finding as a note on the bands before their calibration.
+std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_coverage,
+                                            bool calibrated) {
   if (!check.ran) return {};
   std::vector<int> narrow;
   std::string percents;
@@ -779,11 +781,37 @@ std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_co
     }
   }
   if (narrow.empty()) return {};
+  if (calibrated) {
+    return {Format("before their calibration, the 2 sigma band of %s covered only %s of the "
+                   "held-out torques",
+                   JointsText(narrow).c_str(), percents.c_str())};
+  }
   return {Format(
       "the 2 sigma band of %s covered only %s of the held-out torques (held-out check; about "
       "95%% when calibrated): the model claims more certainty than it has on motion it was not "
       "fitted on",
       JointsText(narrow).c_str(), percents.c_str())};
+}
+
+// Sets the model's latent variance scale from the held-out check (FitOptions::calibrate_bands;
+// a joint the check did not count keeps 1) and says which joints' bands it widened.
+std::string CalibrateBands(const FitCheck& check, double target, RobotModel* model) {
+  Vector scale = Vector::Ones(model->num_joints());
+  std::vector<int> widened;
+  std::string factors;
+  for (int j = 0; j < model->num_joints(); ++j) {
+    const double kappa =
+        j < check.latent_variance_scale.size() ? check.latent_variance_scale[j] : 1.0;
+    if (!std::isfinite(kappa) || kappa <= 1.0) continue;
+    scale[j] = kappa;
+    factors += Format("%s%.3g", widened.empty() ? "" : ", ", kappa);
+    widened.push_back(j);
+  }
+  model->SetLatentVarianceScale(scale);
+  if (widened.empty()) return {};
+  return Format("2 sigma bands calibrated on the held-out blocks: the latent variance of %s "
+                "scaled by %s (each band then covers at least %.0f%% of its held-out torques)",
+                JointsText(widened).c_str(), factors.c_str(), 100.0 * target);
 }
 
 // Warnings for joints the log never moves or never accelerates (kStillJointRms): the torques
@@ -1041,8 +1069,10 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
                                  ". Predictions away from the training path may be far off.");
     }
   }
-  for (std::string& warning : NarrowBandWarnings(summary.check, options.check.min_coverage)) {
-    summary.warnings.push_back(std::move(warning));
+  const bool calibrate = options.calibrate_bands && summary.check.ran;
+  for (std::string& line : NarrowBandWarnings(summary.check, options.check.min_coverage,
+                                              calibrate)) {
+    (calibrate ? summary.notes : summary.warnings).push_back(std::move(line));
   }
   summary.hyperparameter_seconds = fit.seconds();
   if (fit.aborted()) return fit.Aborted();
@@ -1060,6 +1090,13 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
             "hyper-parameters, or check the data for duplicated rows)");
   }
   summary.model_rows = static_cast<int>(model->gp().fit_rows());
+  if (calibrate) {
+    const std::string note = CalibrateBands(summary.check, options.check.target_coverage, model);
+    if (!note.empty()) {
+      summary.notes.push_back(note);
+      if (!fit.Report(note)) return fit.Aborted();
+    }
+  }
   if (model->gp().subsampled()) {
     const std::string note = Format(
         "the function-space form was fitted on %d evenly spaced rows of %d (its row limit: the "
@@ -1320,6 +1357,7 @@ Json SummaryJson(const FitSummary& summary) {
                 {"worst_confident_fraction", number(summary.check.worst_confident_fraction)},
                 {"worst_excursion", number(summary.check.worst_excursion)},
                 {"coverage", numbers(summary.check.coverage)},
+                {"latent_variance_scale", numbers(summary.check.latent_variance_scale)},
                 {"message", summary.check.message}};
   s["cv_mean_nmse"] = number(summary.cv_mean_nmse);
   s["cv_candidates"] = summary.cv_candidates;

@@ -427,7 +427,10 @@ std::string ModelFileText(const RobotModel& model) {
   Json doc;
   doc["format"] = kModelFileFormat;
   // Models with shared hyper-parameters stay readable by builds that read version 2.
-  doc["version"] = h.is_per_output() ? kModelFileVersion : kSharedModelFileVersion;
+  // A calibrated model too needs a reader that applies its latent variance scale.
+  const bool scaled = !model.latent_variance_scale().isOnes(0.0);
+  doc["version"] =
+      h.is_per_output() || scaled ? kModelFileVersion : kSharedModelFileVersion;
   doc["model"] = ToString(model.spec());
   doc["effects"] = ToString(model.spec().effects);
   Json effects = Json::array();
@@ -466,6 +469,7 @@ std::string ModelFileText(const RobotModel& model) {
   doc["form"] = ToString(gp.form());
 
   doc["hyperparameters"] = hyper;
+  if (scaled) doc["latent_variance_scale"] = NumberArray(model.latent_variance_scale());
 
   const double lml = gp.LogMarginalLikelihood();
   if (std::isfinite(lml)) doc["log_marginal_likelihood"] = lml;
@@ -749,6 +753,21 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
     state.options.batch.num_threads = load.num_threads;
     state.hyperparameters = hyper;
     state.form = active;
+    if (doc.contains("latent_variance_scale")) {
+      state.latent_variance_scale = r.Numbers(doc, "", "latent_variance_scale");
+      if (state.latent_variance_scale.size() != num_joints) {
+        r.FailField("latent_variance_scale",
+                    "expected " + std::to_string(num_joints) + " numbers (one per joint), got " +
+                        std::to_string(state.latent_variance_scale.size()));
+      }
+      for (Eigen::Index j = 0; j < state.latent_variance_scale.size(); ++j) {
+        const double kappa = state.latent_variance_scale[j];
+        if (!(std::isfinite(kappa) && kappa > 0.0)) {
+          r.FailField("latent_variance_scale[" + std::to_string(j) + "]",
+                      "expected a finite number > 0, got " + std::to_string(kappa));
+        }
+      }
+    }
     if (probe.kernel() != nullptr) {
       // A kernel's parameters: "kernel_parameters" in the file, Hyperparameters::shape in the
       // model.

@@ -33,6 +33,7 @@ RobotModel::RobotModel(const ModelSpec& spec, int num_joints, const RobotModelOp
     throw std::invalid_argument("RobotModel: num_joints must be >= 1, got " +
                                 std::to_string(num_joints_));
   }
+  latent_variance_scale_ = Vector::Ones(num_joints_);
   RequireInRange("RobotModelOptions.friction_width", options_.friction_width, 0.0, 1e9);
   RequireInRange("RobotModelOptions.broad_prior_std", options_.broad_prior_std, 0.0, 1e12);
   for (const auto& e : spec_.effects) {
@@ -332,7 +333,21 @@ Status RobotModel::Fit(const ConstMatrixRef& X, const ConstMatrixRef& Y,
   if (kernel_) kernel_ = kernel_->WithParameters(hyper.shape);
   gp_ = std::move(gp);
   hyper_ = hyper;
+  latent_variance_scale_ = Vector::Ones(num_joints_);
   return Status::kOk;
+}
+
+void RobotModel::SetLatentVarianceScale(const Vector& scale) {
+  RequireSize("RobotModel::SetLatentVarianceScale scale", scale.size(), num_joints_,
+              "entries (joints)");
+  for (Eigen::Index j = 0; j < scale.size(); ++j) {
+    if (!(std::isfinite(scale[j]) && scale[j] > 0.0)) {
+      throw std::invalid_argument(
+          "RobotModel::SetLatentVarianceScale scale[" + std::to_string(j) +
+          "]: expected a finite value > 0, got " + std::to_string(scale[j]));
+    }
+  }
+  latent_variance_scale_ = scale;
 }
 
 RobotModelState RobotModel::State() const {
@@ -342,6 +357,7 @@ RobotModelState RobotModel::State() const {
   state.num_joints = num_joints_;
   state.options = options_;
   state.hyperparameters = hyper_;
+  if (!latent_variance_scale_.isOnes(0.0)) state.latent_variance_scale = latent_variance_scale_;
   state.form = fitted_gp.form();
   if (const EulerLagrangeGP* euler = fitted_gp.euler_lagrange()) {
     state.inputs = euler->inputs();
@@ -370,6 +386,14 @@ RobotModelState RobotModel::State() const {
 }
 
 RobotModel RobotModel::FromState(const RobotModelState& state) {
+  RobotModel model = RestoreState(state);
+  if (state.latent_variance_scale.size() > 0) {
+    model.SetLatentVarianceScale(state.latent_variance_scale);
+  }
+  return model;
+}
+
+RobotModel RobotModel::RestoreState(const RobotModelState& state) {
   RobotModel model(state.spec, state.num_joints, state.options);
   const int N = model.num_joints_;
   const Hyperparameters& hyper = state.hyperparameters;
@@ -516,10 +540,17 @@ Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean, Workspace& w
 Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
                                        VectorRef latent_variance, VectorRef noisy_variance,
                                        Workspace& workspace) const {
-  return AddPriorMean(
+  const Status status = AddPriorMean(
       prior_mean_.get(), num_joints_, x,
       gp().PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace.gp), mean,
       &workspace.prior_mean);
+  if (status == Status::kOk && !latent_variance_scale_.isOnes(0.0)) {
+    // kappa v + sigma^2 = (v + sigma^2) + (kappa - 1) v; allocation-free.
+    noisy_variance.array() +=
+        (latent_variance_scale_.array() - 1.0) * latent_variance.array();
+    latent_variance.array() *= latent_variance_scale_.array();
+  }
+  return status;
 }
 
 Status RobotModel::Predict(const ConstVectorRef& x, VectorRef mean) const {

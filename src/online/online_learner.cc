@@ -148,6 +148,15 @@ bool OnlineLearnerOptions::IsValid(std::string* error) const {
       return Fail(error, "output_scales: every entry must be finite and > 0");
     }
   }
+  if (latent_variance_scale.size() != 0) {
+    if (latent_variance_scale.size() != P) {
+      return Fail(error, Sizes("latent_variance_scale (one per output, or empty)",
+                               latent_variance_scale.size(), P));
+    }
+    if (!latent_variance_scale.allFinite() || (latent_variance_scale.array() <= 0.0).any()) {
+      return Fail(error, "latent_variance_scale: every entry must be finite and > 0");
+    }
+  }
   if (!(forgetting > 0.0 && forgetting <= 1.0)) {
     return Fail(error, "forgetting: expected a value in (0, 1], got " + std::to_string(forgetting));
   }
@@ -743,6 +752,9 @@ OnlineLearnerOptions OnlineLearnerOptionsFor(const RobotModel& model) {
   o.prior_variance = PriorVariance(*model.feature_map(), h);
   o.noise_variance = h.noise_variance();
   o.output_scales = h.output_scales();
+  if (!model.latent_variance_scale().isOnes(0.0)) {
+    o.latent_variance_scale = model.latent_variance_scale();
+  }
   return o;
 }
 
@@ -815,6 +827,9 @@ Status OnlineLearner::PredictWithVariance(const ConstVectorRef& x, VectorRef mea
   const WeightsSnapshot& w = s.weights_buffer.read_buffer();
   const FactorSnapshot& f = s.factor_buffer->read_buffer();
   s.form->Predict(x, w.weights, &f.factor, s.control, mean, latent_variance);
+  if (s.options.latent_variance_scale.size() != 0) {
+    latent_variance.array() *= s.options.latent_variance_scale.array();
+  }
   s.last_version = w.version;
   Bump(s.predictions);
   return Status::kOk;

@@ -51,6 +51,8 @@ struct FitCheckOptions {
   /// FitModel warns of every joint whose held-out coverage (FitCheck::coverage) is below this:
   /// its bands are too narrow on motion the model was not fitted on. In [0, 1].
   double min_coverage = 0.8;
+  /// The held-out coverage FitCheck::latent_variance_scale is solved for, in (0, 1).
+  double target_coverage = 0.95;
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
   /// null).
@@ -76,9 +78,17 @@ struct FitCheck {
   /// Per joint, the fraction of its held-out torques within 2 predictive (noisy) standard
   /// deviations of the held-out mean (size N when the check ran, else empty).
   Vector coverage;
+  /// Per joint, the smallest factor kappa >= 1 on the latent (model) variance with which the
+  /// band sqrt(kappa latent_var + noise_var) covers `FitCheckOptions::target_coverage` of the
+  /// held-out torques (1 when the band already does; at most kMaxLatentVarianceScale). Size N
+  /// when the check ran, NaN for the joints it did not count.
+  Vector latent_variance_scale;
   /// One line for a person.
   std::string message;
 };
+
+/// The largest FitCheck::latent_variance_scale.
+inline constexpr double kMaxLatentVarianceScale = 1e6;
 
 /// Per joint (column), the fraction of the measured torques within 2 standard deviations of the
 /// noisy prediction, sqrt(latent_std^2 + noise_std_j^2), of the mean: about 95% when the bands

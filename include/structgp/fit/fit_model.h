@@ -93,6 +93,13 @@ struct FitOptions {
   /// and FitSummary::warnings says so (a tighter prior is kept only when it passes). Other
   /// methods: checked, warned.
   FitCheckOptions check;
+  /// Calibrate the 2 sigma bands on the held-out check: when it ran, each joint's latent
+  /// variance is scaled by the smallest factor >= 1 with which its band covers
+  /// check.target_coverage of the held-out torques (FitCheck::latent_variance_scale,
+  /// RobotModel::latent_variance_scale). The means are unchanged, and so is a band that
+  /// already covers enough; a wider band only where the model itself is unsure (far from
+  /// its data), not where the noise dominates. false: the posterior's own variance.
+  bool calibrate_bands = true;
   int max_prior_tightenings = 4;
   double prior_tightening_factor = 2.0;
   /// kEvidence on feature-map models with OutputScaling::kPerJointRms: profile the noise

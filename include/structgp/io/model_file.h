@@ -36,6 +36,8 @@
 ///   made by Fit is; after online additions (GaussianProcess::Add) they agree to rounding.
 /// - "checksum" is the CRC-32 of the compact JSON text of the object without "checksum", so
 ///   that any change to a number, a name or the payload is detected.
+/// - "latent_variance_scale" (version 3, only when not all 1): RobotModel's factor on each
+///   joint's latent variance (the calibration of FitOptions::calibrate_bands).
 /// - "effect_list" holds each effect's name, joints and parameters; "model" and "effects" are
 ///   the same model in the text users write (ParseModelSpec, ParseEffectList).
 ///
@@ -53,13 +55,15 @@ namespace structgp {
 /// The value of the "format" field.
 inline constexpr const char* kModelFileFormat = "structgp-model";
 /// The newest version, written by SaveModel for models with per-joint hyper-parameters
-/// ("hyperparameters.per_joint", and in weight space "joint_weight_space"). LoadModel reads it
+/// ("hyperparameters.per_joint", and in weight space "joint_weight_space") and for models
+/// whose bands are calibrated ("latent_variance_scale" not all 1). LoadModel reads it
 /// and every version from kOldestModelFileVersion, except 'lag' and 'lagk' models of version 1
 /// (refused, naming the field "model": version 2 changed their Euler-Lagrange space, so they
 /// must be fitted again).
 inline constexpr int kModelFileVersion = 3;
-/// The version SaveModel writes for models whose joints share their hyper-parameters (their
-/// files are the same as in version 2, so builds that read version 2 read them).
+/// The version SaveModel writes for models whose joints share their hyper-parameters and whose
+/// bands are the posterior's own (their files are the same as in version 2, so builds that
+/// read version 2 read them).
 inline constexpr int kSharedModelFileVersion = 2;
 inline constexpr int kOldestModelFileVersion = 1;
 

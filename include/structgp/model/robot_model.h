@@ -132,6 +132,8 @@ struct RobotModelState {
   Matrix targets;
   /// kEulerLagrange through inducing states: those states (p x 3N); empty when exact.
   Matrix inducing;
+  /// RobotModel::latent_variance_scale(); empty for all 1.
+  Vector latent_variance_scale;
 };
 
 class RobotModel {
@@ -227,6 +229,16 @@ class RobotModel {
   Status Predict(const ConstVectorRef& x, VectorRef mean) const;
   Status PredictWithVariance(const ConstVectorRef& x, VectorRef mean, VectorRef latent_variance,
                              VectorRef noisy_variance) const;
+  /// The factor kappa_j on joint j's latent variance in every prediction with variance: the
+  /// latent variance returned is kappa_j v_j and the noisy one kappa_j v_j + sigma_j^2, where
+  /// v_j is the posterior's (the mean is unchanged). All 1 (the posterior as it is) unless set;
+  /// FitModel sets it from the held-out check when FitOptions::calibrate_bands (so that the
+  /// 2 sigma band covers FitCheckOptions::target_coverage of held-out blocks), and Fit resets
+  /// it to 1 (new hyper-parameters, a new calibration). Size N.
+  const Vector& latent_variance_scale() const { return latent_variance_scale_; }
+  /// Sets latent_variance_scale(). Throws std::invalid_argument unless scale has N entries,
+  /// each finite and > 0.
+  void SetLatentVarianceScale(const Vector& scale);
   /// Means (m x N) and, if not null, latent standard deviations (m x N) for every row of X.
   /// One workspace for all rows (allocates).
   void PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std = nullptr) const;
@@ -275,6 +287,8 @@ class RobotModel {
   void BuildKernel();
   void BuildRegressor();
   void RequireChain() const;
+  // FromState without the latent variance scale.
+  static RobotModel RestoreState(const RobotModelState& state);
 
   ModelSpec spec_;
   int num_joints_;
@@ -290,6 +304,7 @@ class RobotModel {
   std::unique_ptr<Kernel> kernel_;  // at hyper_.shape once fitted
   Vector default_kernel_parameters_;
   Hyperparameters hyper_;
+  Vector latent_variance_scale_;  // N, all 1 unless set
   std::unique_ptr<GaussianProcess> gp_;
 };
 

@@ -128,6 +128,9 @@ struct OnlineLearnerOptions {
   double noise_variance = 0.01;
   /// Output scales s_j (size P, all > 0); empty: all 1.
   Vector output_scales;
+  /// Factor kappa_j on output j's latent variance in PredictWithVariance (size P, all > 0;
+  /// RobotModel::latent_variance_scale, the fit's band calibration); empty: all 1.
+  Vector latent_variance_scale;
   /// Start from a posterior instead of the prior. Feature form: initial_model (D features,
   /// P outputs; its prior, noise and scales replace the three fields above). Regressor form:
   /// initial_regressor, fitted (its prior mean, prior variance and noise levels replace
@@ -169,7 +172,8 @@ struct OnlineLearnerOptions {
 };
 
 /// Options of a learner that starts from the prior of a fitted RobotModel: its feature map,
-/// with the prior variances, noise level and output scales of the model's hyper-parameters,
+/// with the prior variances, noise level and output scales of the model's hyper-parameters
+/// and its latent variance scale,
 /// learning from no data (the model's form, learned again online). Every other option at its
 /// default. Throws std::invalid_argument when the model is not fitted or has no feature map
 /// (rbf, rbfs, rbd, lag, pol beyond its explicit map).
