@@ -306,7 +306,7 @@ class Model {
   Model& Fit(const py::object& X, const py::object& Y, const py::object& t,
              const std::string& hyper, const py::object& starts, const std::string& prior,
              bool check, bool verbose, const py::object& start_from, bool per_joint,
-             bool calibrate_bands) {
+             bool calibrate_bands, double band_coverage) {
     const Matrix states = AsMatrix(X, "X");
     const Matrix torques = AsMatrix(Y, "Y");
     const Vector times = AsVector(t, "t");
@@ -322,6 +322,11 @@ class Model {
     o.evidence.verbose = verbose;
     o.per_joint = per_joint;
     o.calibrate_bands = calibrate_bands;
+    if (!(band_coverage >= 0.5 && band_coverage <= 0.999)) {
+      throw std::invalid_argument("band_coverage: expected a value in [0.5, 0.999], got " +
+                                  std::to_string(band_coverage));
+    }
+    o.check.target_coverage = band_coverage;
     if (!start_from.is_none()) {
       const RobotModel& from = start_from.cast<const Model&>().fitted("start_from");
       if (spec_.base != BaseModel::kLagk || o.method != HyperparameterMethod::kEvidence ||
@@ -473,7 +478,9 @@ save / Model.load use the CLI's model files.
            py::kw_only(), py::arg("hyper") = "ml", py::arg("starts") = py::none(),
            py::arg("prior") = "gaussian", py::arg("check") = true, py::arg("verbose") = false,
            py::arg("start_from") = py::none(), py::arg("per_joint") = false,
-           py::arg("calibrate_bands") = true, py::return_value_policy::reference_internal,
+           py::arg("calibrate_bands") = true,
+           py::arg("band_coverage") = FitCheckOptions().target_coverage,
+           py::return_value_policy::reference_internal,
            "Fits the model to X (m x 3N), Y (m x N) and optional times t (m), rows in time "
            "order: hyper 'ml' (type-II maximum likelihood with a prior, `starts` runs), 'cv' "
            "(blocked cross-validation) or 'fixed' (the defaults). start_from: a fitted lagk "
@@ -481,7 +488,8 @@ save / Model.load use the CLI's model files.
            "(`structgp fit --start-from`). per_joint: each joint its own hyper-parameters "
            "(`structgp fit --per-joint`; pol, motor, rbf, rbfs). calibrate_bands: scale each joint's "
            "latent variance so that its 2 sigma band covers 95% of the held-out check's torques "
-           "(False: `structgp fit --no-calibrate-bands`). Returns self; the summary is in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
+           "(False: `structgp fit --no-calibrate-bands`; band_coverage: that coverage, as "
+           "--band-coverage). Returns self; the summary is in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
       .def("predict", &Model::Predict, py::arg("X"), py::arg("t") = py::none(),
            py::arg("return_std") = false,
            "Predicted torques (m x N); with return_std=True also the posterior standard "

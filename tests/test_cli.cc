@@ -877,6 +877,54 @@ TEST(CliUserLogs, PerJointHyperparametersFitPredictEvaluateAndDiagnose) {
   EXPECT_TRUE(Contains(lag.err, "shares its parameters across joints")) << lag.err;
 }
 
+// The bands calibrated on the held-out check from the command line: pol without the friction
+// the demo's slow log holds (joint 2's held-out band too narrow) gets a factor on joint 2's
+// latent variance, in the model file and the JSON summary; a higher --band-coverage a larger
+// one; --no-calibrate-bands none (a version-2 file, as before).
+TEST(CliFit, BandsAreCalibratedOnTheHeldOutCheckUnlessAskedNotTo) {
+  TempDir dir;
+  ASSERT_EQ(RunCli(dir, {"demo", "--out", dir.File("demo"), "--quiet"}).code, 0);
+  const std::string train = dir.File("demo") + "/train.csv";
+  const std::string model = dir.File("m.json"), json = dir.File("fit.json");
+  const Result fit = RunCli(dir, {"fit", "--data", train, "--model", "pol", "--out", model,
+                                  "--json", json, "--quiet"});
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  EXPECT_TRUE(Contains(fit.out, "2 sigma bands calibrated on the held-out blocks")) << fit.out;
+  const Json file = Json::parse(ReadFile(model));
+  EXPECT_EQ(file["version"], 3);
+  const std::vector<double> kappa = file["latent_variance_scale"].get<std::vector<double>>();
+  ASSERT_EQ(kappa.size(), 2u);
+  EXPECT_GT(kappa[1], 1.0);
+  const Json check = Json::parse(ReadFile(json))["summary"]["check"];
+  for (size_t j = 0; j < 2; ++j) {
+    EXPECT_EQ(kappa[j], std::max(1.0, check["latent_variance_scale"][j].get<double>()));
+  }
+
+  const std::string cautious = dir.File("cautious.json");
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", train, "--model", "pol", "--band-coverage", "0.99",
+                         "--out", cautious, "--quiet"})
+                .code,
+            0);
+  const std::vector<double> kappa99 =
+      Json::parse(ReadFile(cautious))["latent_variance_scale"].get<std::vector<double>>();
+  EXPECT_GE(kappa99[0], kappa[0]);
+  EXPECT_GT(kappa99[1], kappa[1]);
+
+  const std::string plain = dir.File("plain.json");
+  const Result uncalibrated = RunCli(dir, {"fit", "--data", train, "--model", "pol",
+                                           "--no-calibrate-bands", "--out", plain, "--quiet"});
+  ASSERT_EQ(uncalibrated.code, 0) << uncalibrated.err;
+  EXPECT_FALSE(Contains(uncalibrated.out, "calibrated on the held-out")) << uncalibrated.out;
+  const Json plain_file = Json::parse(ReadFile(plain));
+  EXPECT_EQ(plain_file["version"], 2);
+  EXPECT_FALSE(plain_file.contains("latent_variance_scale"));
+
+  const Result bad = RunCli(dir, {"fit", "--data", train, "--model", "pol", "--band-coverage",
+                                  "1.5", "--out", dir.File("bad.json")});
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_TRUE(Contains(bad.err, "--band-coverage")) << bad.err;
+}
+
 // ---- replay -------------------------------------------------------------------------------
 
 // From a fitted model and from zero, on a log of three trajectories (time starting again):

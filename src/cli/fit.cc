@@ -63,6 +63,11 @@ class FitCommand : public Command {
     cmd->add_flag("--no-calibrate-bands", no_calibrate_bands_,
                   "Keep the posterior's own 2 sigma bands: do not scale a joint's latent "
                   "variance so that its band covers 95% of the held-out blocks' torques");
+    cmd->add_option("--band-coverage", options_.check.target_coverage,
+                    "The held-out coverage the calibrated 2 sigma bands are scaled to (0.95: "
+                    "what a Gaussian's 2 sigma band covers; higher for more cautious bands)")
+        ->check(CLI::Range(0.5, 0.999))
+        ->capture_default_str();
     cmd->add_option("--folds", options_.cv_folds, "Contiguous folds of --hyper cv")
         ->check(CLI::Range(2, 1000))
         ->capture_default_str();
