@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <fstream>
 #include <iostream>
@@ -30,6 +31,7 @@
 #include "structgp/model/model_spec.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/online/online_learner.h"
+#include "structgp/report/report_data.h"
 #include "temp_files.h"
 
 namespace structgp {
@@ -233,6 +235,15 @@ TEST(CalibrateBands, ScalesTheLatentVarianceAndNothingElse) {
               Status::kOk);
     EXPECT_EQ(latent_std.row(i).transpose(), l.cwiseSqrt());
   }
+  // A report says so (report::CalibratedBandsNote, in diagnose's and compare's reports).
+  char factor[32];
+  std::snprintf(factor, sizeof factor, "%.3g", kappa[1]);
+  const std::string note = report::CalibratedBandsNote(calibrated.model);
+  EXPECT_NE(note.find(std::string("joint") + (kappa[0] > 1.0 ? "s 1, 2" : " 2") + " scaled by"),
+            std::string::npos)
+      << note;
+  EXPECT_NE(note.find(factor), std::string::npos) << note;
+  EXPECT_TRUE(report::CalibratedBandsNote(plain.model).empty());
   // On the fast log (2.5 times the speed, unseen) the calibrated band covers more of the
   // torques where it was widened.
   const sim::Dataset& fast = testing::DemoScenario().test;

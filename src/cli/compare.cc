@@ -133,6 +133,10 @@ class CompareCommand : public Command {
         r.errors.push_back(ReportErrors(labels[k], errors[k], coverage[k]));
         r.notes.push_back(Format("model %c: %s (%s)", static_cast<char>('A' + k), labels[k].c_str(),
                                  models_[k].c_str()));
+        const std::string bands = report::CalibratedBandsNote(models[k]);
+        if (!bands.empty()) {
+          r.notes.push_back(Format("model %c: ", static_cast<char>('A' + k)) + bands);
+        }
       }
       outputs.push_back({"--report", report_, report::RenderHtml(r)});
     }

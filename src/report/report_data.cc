@@ -107,7 +107,27 @@ ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
   r.errors.push_back(
       ToModelErrors(p.label, ComputeErrors(p.mean, data.Y),
                     BandCoverage(p.mean, p.std, model.hyperparameters().noise_stds(), data.Y)));
+  const std::string bands = CalibratedBandsNote(model);
+  if (!bands.empty()) r.notes.push_back(bands);
   return r;
+}
+
+std::string CalibratedBandsNote(const RobotModel& model) {
+  const Vector& scale = model.latent_variance_scale();
+  std::string joints, factors;
+  int count = 0;
+  for (Eigen::Index j = 0; j < scale.size(); ++j) {
+    if (scale[j] == 1.0) continue;
+    char factor[32];
+    std::snprintf(factor, sizeof factor, "%.3g", scale[j]);
+    joints += (count ? ", " : "") + std::to_string(j + 1);
+    factors += (count ? ", " : "") + std::string(factor);
+    ++count;
+  }
+  if (count == 0) return {};
+  return std::string("The 2 sigma bands are calibrated on the fit's held-out check: the latent "
+                     "variance of joint") +
+         (count > 1 ? "s " : " ") + joints + " scaled by " + factors + ".";
 }
 
 ReportData ReplayReportData(const ReplaySummary& summary, const RobotData& data,

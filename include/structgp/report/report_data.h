@@ -60,6 +60,11 @@ std::vector<JointStates> JointStatesOf(const RobotData& data);
 ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
                                const Diagnosis& diagnosis);
 
+/// The note a report shows for a model whose bands are calibrated
+/// (RobotModel::latent_variance_scale not all 1), naming the joints and their factors; empty
+/// otherwise. DiagnosisReportData adds it.
+std::string CalibratedBandsNote(const RobotModel& model);
+
 /// The report of a replay of `data` (the log that was replayed, in the same row order):
 /// per joint the measured torque with the one-step-ahead prediction (measured - error), the
 /// one-step-ahead error over time (SignalPlot "one-step-ahead error"), and the residual plots;
