@@ -900,6 +900,11 @@ TEST(CliFit, BandsAreCalibratedOnTheHeldOutCheckUnlessAskedNotTo) {
     EXPECT_EQ(kappa[j], std::max(1.0, check["latent_variance_scale"][j].get<double>()));
   }
 
+  const std::string test = dir.File("demo") + "/test.csv";
+  const Result evaluate = RunCli(dir, {"evaluate", "--model", model, "--data", test});
+  ASSERT_EQ(evaluate.code, 0) << evaluate.err;
+  EXPECT_TRUE(Contains(evaluate.out, "bands  The 2 sigma bands are calibrated")) << evaluate.out;
+
   const std::string cautious = dir.File("cautious.json");
   ASSERT_EQ(RunCli(dir, {"fit", "--data", train, "--model", "pol", "--band-coverage", "0.99",
                          "--out", cautious, "--quiet"})
@@ -918,6 +923,9 @@ TEST(CliFit, BandsAreCalibratedOnTheHeldOutCheckUnlessAskedNotTo) {
   const Json plain_file = Json::parse(ReadFile(plain));
   EXPECT_EQ(plain_file["version"], 2);
   EXPECT_FALSE(plain_file.contains("latent_variance_scale"));
+  const Result plain_evaluate = RunCli(dir, {"evaluate", "--model", plain, "--data", test});
+  ASSERT_EQ(plain_evaluate.code, 0) << plain_evaluate.err;
+  EXPECT_FALSE(Contains(plain_evaluate.out, "bands  ")) << plain_evaluate.out;
 
   const Result bad = RunCli(dir, {"fit", "--data", train, "--model", "pol", "--band-coverage",
                                   "1.5", "--out", dir.File("bad.json")});

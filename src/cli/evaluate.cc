@@ -8,6 +8,7 @@
 #include "common.h"
 #include "structgp/fit/fit_check.h"
 #include "structgp/io/model_file.h"
+#include "structgp/report/report_data.h"
 
 namespace structgp {
 namespace cli {
@@ -68,6 +69,8 @@ class EvaluateCommand : public Command {
 
     std::fprintf(text_out, "model  %s (%s)\ndata   %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());
+    const std::string bands = report::CalibratedBandsNote(model);
+    if (!bands.empty()) std::fprintf(text_out, "bands  %s\n", bands.c_str());
     std::fputs(Table(rows).c_str(), text_out);
     if (!json_.empty()) {
       const std::vector<OutputFile> outputs = {{"--json", json_, doc.dump(2) + "\n"}};
