@@ -109,6 +109,7 @@ struct Flags {
   std::vector<double> lagk_sigmas = EulerLagrangeGPOptions().sigmas;
   std::string prior = "gaussian";  // of every type-II search (the CLI's --prior)
   bool calibrate_bands = true;     // FitOptions::calibrate_bands (the CLI's default)
+  double band_coverage = 0.95;     // FitCheckOptions::target_coverage (the CLI's default)
   double noise = 0.01;
   // "train": noise and friction sized by the training log's RMS torques and velocities;
   // "default-slow": by the default slow log's (50 via points in 50 s), whatever the training
@@ -461,7 +462,7 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
              const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows,
              const EulerLagrangeGPOptions& lagk_options, bool components,
-             bool calibrate_bands) {
+             bool calibrate_bands, double band_coverage) {
   Row row;
   row.robot = robot_name;
   row.kase = case_name;
@@ -562,7 +563,8 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     }
     FitOptions options;
     options.per_joint = variant == "joint";
-    options.calibrate_bands = calibrate_bands;  // --no-calibrate-bands
+    options.calibrate_bands = calibrate_bands;       // --no-calibrate-bands
+    options.check.target_coverage = band_coverage;  // --band-coverage
     options.evidence.prior.family = lagk_options.prior.family;  // --prior, for every search
     options.num_threads = lagk_options.num_threads;              // --threads
     options.model.batch.num_threads = lagk_options.num_threads;
@@ -642,7 +644,7 @@ int Run(const Flags& flags, int argc, char** argv) {
       for (const std::string& model : f.models) {
         Row row = RunModel(robot_name, case_name, model, robot, c, f.lagk_rows,
                            f.lagk_hyper_rows, lagk_options, f.components,
-                           f.calibrate_bands);
+                           f.calibrate_bands, f.band_coverage);
         if (f.components) row.component_size = ComponentSizes(c);
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %d | %.1f | %s |\n", row.robot.c_str(),
                     row.kase.c_str(), row.model.c_str(),
@@ -770,6 +772,10 @@ int main(int argc, char** argv) {
   app.add_flag("!--no-calibrate-bands", f.calibrate_bands,
                "keep the posterior's own bands (structgp fit --no-calibrate-bands); by default "
                "the fits calibrate them on their held-out check, as the CLI does");
+  structgp::AddFlag(&app, "--band-coverage", &f.band_coverage,
+                    "the held-out coverage the calibrated bands are scaled to (structgp fit "
+                    "--band-coverage)")
+      ->check(CLI::Range(0.5, 0.999));
   app.add_flag("--components", f.components,
                "also split each model's test error into its gravity, inertial and velocity "
                "(Coriolis + friction) terms against the simulation's (reference, lagk and "
