@@ -31,6 +31,7 @@
 #include "structgp/model/model_spec.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/online/online_learner.h"
+#include "structgp/online/replay.h"
 #include "structgp/report/report_data.h"
 #include "temp_files.h"
 
@@ -342,7 +343,7 @@ TEST(CalibrateBands, TheModelFileKeepsTheScale) {
   }
 }
 
-TEST(CalibrateBands, TheOnlineLearnerScalesItsLatentVariance) {
+TEST(CalibrateBands, TheOnlineLearnerScalesItsLatentVarianceAndReplayKeepsIt) {
   const FittedModel calibrated = FitPol(true);
   const Vector kappa = calibrated.model.latent_variance_scale();
   ASSERT_GT(kappa.maxCoeff(), 1.0);
@@ -366,6 +367,17 @@ TEST(CalibrateBands, TheOnlineLearnerScalesItsLatentVariance) {
   ASSERT_EQ(scaled_learner.PredictWithVariance(x, m1, v1), Status::kOk);
   EXPECT_EQ(m0, m1);
   for (int j = 0; j < 2; ++j) EXPECT_DOUBLE_EQ(v1[j], kappa[j] * v0[j]);
+
+  // A replay from the calibrated model keeps its calibration in the model it learns.
+  const ReplaySummary replayed =
+      Replay(calibrated.model, Slow().X.topRows(200), Slow().Y.topRows(200), Slow().t.head(200),
+             ReplayOptions());
+  ASSERT_NE(replayed.model, nullptr);
+  EXPECT_EQ(replayed.model->latent_variance_scale(), kappa);
+  const ReplaySummary plain_replay =
+      Replay(FitPol(false).model, Slow().X.topRows(200), Slow().Y.topRows(200),
+             Slow().t.head(200), ReplayOptions());
+  EXPECT_TRUE(plain_replay.model->latent_variance_scale().isOnes(0.0));
 
   OnlineLearnerOptions bad = unscaled;
   bad.latent_variance_scale = Vector::Ones(3);

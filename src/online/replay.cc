@@ -43,6 +43,12 @@ Vector RmsRows(const Matrix& errors, Eigen::Index begin, Eigen::Index end) {
 }
 
 // The learner's options for the model: its posterior when fitted, else its prior at hyper.
+// A fitted model's calibrated bands (RobotModel::latent_variance_scale), empty when they are
+// the posterior's own.
+Vector CalibratedScale(const RobotModel& model) {
+  return model.latent_variance_scale().isOnes(0.0) ? Vector() : model.latent_variance_scale();
+}
+
 OnlineLearnerOptions LearnerOptions(const RobotModel& model, const Hyperparameters& hyper) {
   OnlineLearnerOptions o;
   o.start_thread = false;
@@ -56,6 +62,7 @@ OnlineLearnerOptions LearnerOptions(const RobotModel& model, const Hyperparamete
       o.noise_variance = hyper.noise_variance();
       o.output_scales = hyper.output_scales();
     }
+    if (model.fitted()) o.latent_variance_scale = CalibratedScale(model);
     return o;
   }
   if (model.fitted() && model.per_joint()) {
@@ -75,6 +82,7 @@ OnlineLearnerOptions LearnerOptions(const RobotModel& model, const Hyperparamete
   o.num_outputs = model.num_joints();
   if (model.fitted()) {
     o.initial_model = std::make_shared<const WeightSpaceGP>(*model.gp().weight_space());
+    o.latent_variance_scale = CalibratedScale(model);
   } else {
     o.prior_variance = PriorVariance(*model.feature_map(), hyper);
     o.noise_variance = hyper.noise_variance();
@@ -197,6 +205,7 @@ ReplaySummary Replay(const RobotModel& model, const ConstMatrixRef& X, const Con
     state.num_joints = N;
     state.options = model.options();
     state.hyperparameters = hyper;
+    state.latent_variance_scale = lo.latent_variance_scale;  // the start's calibration
     if (learner.regressor_form()) {
       state.form = Form::kRegressor;
       state.regressor = learner.regressor_model().State();
