@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
@@ -106,6 +107,41 @@ std::vector<std::vector<std::pair<double, double>>> HeldOut(const RobotModel& mo
   return rows;
 }
 
+// The same for the fastest 1/folds of the rows (by |qd|), predicted by the model fitted on
+// the slower ones.
+std::vector<std::vector<std::pair<double, double>>> Fastest(const RobotModel& model,
+                                                            const Hyperparameters& h,
+                                                            const Log& log, int folds) {
+  const int m = static_cast<int>(log.X.rows());
+  std::vector<std::pair<double, int>> speed;
+  for (int i = 0; i < m; ++i) speed.emplace_back(log.X.row(i).segment(2, 2).squaredNorm(), i);
+  std::stable_sort(speed.begin(), speed.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  const int held = (m + folds - 1) / folds;
+  std::vector<int> train, test;
+  for (int k = 0; k < m; ++k) (k < m - held ? train : test).push_back(speed[k].second);
+  std::sort(train.begin(), train.end());
+  std::sort(test.begin(), test.end());
+  Matrix X(static_cast<Eigen::Index>(train.size()), 6), Y(X.rows(), 2);
+  for (size_t k = 0; k < train.size(); ++k) {
+    X.row(static_cast<Eigen::Index>(k)) = log.X.row(train[k]);
+    Y.row(static_cast<Eigen::Index>(k)) = log.Y.row(train[k]);
+  }
+  RobotModel fold(model.spec(), 2);
+  EXPECT_EQ(fold.Fit(X, Y, h), Status::kOk);
+  std::vector<std::vector<std::pair<double, double>>> rows(2);
+  for (int i : test) {
+    Vector mean(2), latent(2), noisy(2);
+    EXPECT_EQ(fold.PredictWithVariance(log.X.row(i).transpose(), mean, latent, noisy),
+              Status::kOk);
+    for (int j = 0; j < 2; ++j) {
+      const double e = log.Y(i, j) - mean[j];
+      rows[static_cast<size_t>(j)].emplace_back(e * e, latent[j]);
+    }
+  }
+  return rows;
+}
+
 double Coverage(const std::vector<std::pair<double, double>>& rows, double kappa,
                 double noise_var) {
   int inside = 0;
@@ -127,21 +163,42 @@ TEST(LatentVarianceScale, IsTheSmallestScaleWithWhichTheHeldOutBandCoversTheTarg
   ASSERT_TRUE(check.ran);
   ASSERT_EQ(check.latent_variance_scale.size(), 2);
 
-  const auto rows = HeldOut(model, h, log, options.folds);
+  const auto blocks = HeldOut(model, h, log, options.folds);
+  const auto fastest = Fastest(model, h, log, options.folds);
   const Vector noise_std = h.noise_stds();
+  ASSERT_EQ(check.fastest_coverage.size(), 2);
   for (int j = 0; j < 2; ++j) {
     SCOPED_TRACE("joint " + std::to_string(j + 1));
     const double kappa = check.latent_variance_scale[j];
     const double noise_var = noise_std[j] * noise_std[j];
-    const auto& r = rows[static_cast<size_t>(j)];
-    // The band is too narrow as the posterior gives it, so the scale is above 1 ...
-    EXPECT_LT(Coverage(r, 1.0, noise_var), options.target_coverage);
-    EXPECT_NEAR(Coverage(r, 1.0, noise_var), check.coverage[j], 1e-12);
+    const auto& b = blocks[static_cast<size_t>(j)];
+    const auto& f = fastest[static_cast<size_t>(j)];
+    // The bands are too narrow as the posterior gives them, so the scale is above 1 ...
+    EXPECT_LT(Coverage(b, 1.0, noise_var), options.target_coverage);
+    EXPECT_NEAR(Coverage(b, 1.0, noise_var), check.coverage[j], 1e-12);
+    EXPECT_NEAR(Coverage(f, 1.0, noise_var), check.fastest_coverage[j], 1e-12);
     EXPECT_GT(kappa, 1.0);
     EXPECT_LT(kappa, kMaxLatentVarianceScale);
-    // ... it covers the target, and a slightly smaller one does not.
-    EXPECT_GE(Coverage(r, kappa * (1.0 + 1e-9), noise_var), options.target_coverage);
-    EXPECT_LT(Coverage(r, kappa * (1.0 - 1e-6), noise_var), options.target_coverage);
+    // ... with it both the blocks and the fastest rows are covered to the target, and with a
+    // slightly smaller one at least one of them is not.
+    EXPECT_GE(Coverage(b, kappa * (1.0 + 1e-9), noise_var), options.target_coverage);
+    EXPECT_GE(Coverage(f, kappa * (1.0 + 1e-9), noise_var), options.target_coverage);
+    const double less = kappa * (1.0 - 1e-6);
+    EXPECT_TRUE(Coverage(b, less, noise_var) < options.target_coverage ||
+                Coverage(f, less, noise_var) < options.target_coverage);
+  }
+  // Without the fastest rows' fold: the blocks' own smallest factor.
+  options.fastest_rows_fold = false;
+  const FitCheck blocks_only = CheckOnHeldOutBlocks(model, h, log.X, log.Y, options);
+  EXPECT_EQ(blocks_only.fastest_coverage.size(), 0);
+  for (int j = 0; j < 2; ++j) {
+    const double kappa = blocks_only.latent_variance_scale[j];
+    const double noise_var = noise_std[j] * noise_std[j];
+    EXPECT_LE(kappa, check.latent_variance_scale[j]);
+    EXPECT_GE(Coverage(blocks[static_cast<size_t>(j)], kappa * (1.0 + 1e-9), noise_var),
+              options.target_coverage);
+    EXPECT_LT(Coverage(blocks[static_cast<size_t>(j)], kappa * (1.0 - 1e-6), noise_var),
+              options.target_coverage);
   }
 }
 

@@ -187,6 +187,38 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     return check;
   }
   check.ran = true;
+  // The fastest rows (by |qd|), predicted by the model fitted on the others.
+  std::vector<std::vector<std::pair<double, double>>> fastest(static_cast<size_t>(N));
+  if (options.fastest_rows_fold) {
+    std::vector<int> order(static_cast<size_t>(m));
+    for (int i = 0; i < m; ++i) order[static_cast<size_t>(i)] = i;
+    std::stable_sort(order.begin(), order.end(), [&Xs, N](int a, int b) {
+      return Xs.row(a).segment(N, N).squaredNorm() < Xs.row(b).segment(N, N).squaredNorm();
+    });
+    const int held = (m + options.folds - 1) / options.folds;
+    std::vector<int> train(order.begin(), order.end() - held);
+    std::vector<int> test(order.end() - held, order.end());
+    std::sort(train.begin(), train.end());  // in time order
+    std::sort(test.begin(), test.end());
+    RobotModel fold(model.spec(), N, model.options());
+    if (fold.Fit(SelectRows(Xs, train), SelectRows(Ys, train), hyper) == Status::kOk) {
+      Matrix mean, latent_std;
+      fold.PredictRows(SelectRows(Xs, test), &mean, &latent_std);
+      const Matrix Yt = SelectRows(Ys, test);
+      check.fastest_coverage = BandCoverage(mean, latent_std, noise_std, Yt);
+      for (int i = 0; i < held; ++i) {
+        for (int j = 0; j < N; ++j) {
+          if (!counts(j) || !std::isfinite(mean(i, j))) continue;
+          const double residual = Yt(i, j) - mean(i, j);
+          fastest[static_cast<size_t>(j)].emplace_back(residual * residual,
+                                                       latent_std(i, j) * latent_std(i, j));
+        }
+      }
+      for (int j = 0; j < N; ++j) {
+        if (!counts(j)) check.fastest_coverage[j] = std::numeric_limits<double>::quiet_NaN();
+      }
+    }
+  }
   check.coverage.resize(N);
   check.latent_variance_scale.resize(N);
   for (int j = 0; j < N; ++j) {
@@ -195,8 +227,10 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
       check.latent_variance_scale[j] = std::numeric_limits<double>::quiet_NaN();
       continue;
     }
-    check.latent_variance_scale[j] = LatentVarianceScale(
-        errors[static_cast<size_t>(j)], noise_std[j] * noise_std[j], options.target_coverage);
+    const double noise_var = noise_std[j] * noise_std[j];
+    check.latent_variance_scale[j] = std::max(
+        LatentVarianceScale(errors[static_cast<size_t>(j)], noise_var, options.target_coverage),
+        LatentVarianceScale(fastest[static_cast<size_t>(j)], noise_var, options.target_coverage));
     check.coverage[j] = static_cast<double>(covered[static_cast<size_t>(j)]) / check.rows;
     const double fraction = static_cast<double>(absurd[static_cast<size_t>(j)]) / check.rows;
     if (fraction > check.worst_fraction) {
@@ -243,6 +277,15 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   check.message += "; 2 sigma band covers " + coverage_text +
                    (only_joint > 0 ? Format(" of joint %d's held-out torques", only_joint)
                                    : std::string(" of the held-out torques per joint"));
+  if (check.fastest_coverage.size() == N) {
+    std::string fastest_text;
+    for (int j = 0; j < N; ++j) {
+      if (!counts(j)) continue;
+      fastest_text += Format("%s%.0f%%", fastest_text.empty() ? "" : " ",
+                             100.0 * check.fastest_coverage[j]);
+    }
+    check.message += ", " + fastest_text + " of the fastest rows' (fitted on the slower ones)";
+  }
   return check;
 }
 

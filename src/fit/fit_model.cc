@@ -1357,6 +1357,7 @@ Json SummaryJson(const FitSummary& summary) {
                 {"worst_confident_fraction", number(summary.check.worst_confident_fraction)},
                 {"worst_excursion", number(summary.check.worst_excursion)},
                 {"coverage", numbers(summary.check.coverage)},
+                {"fastest_coverage", numbers(summary.check.fastest_coverage)},
                 {"latent_variance_scale", numbers(summary.check.latent_variance_scale)},
                 {"message", summary.check.message}};
   s["cv_mean_nmse"] = number(summary.cv_mean_nmse);

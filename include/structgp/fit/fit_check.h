@@ -20,7 +20,7 @@
 /// a model whose bands are calibrated on motion it was not fitted on.
 ///
 /// Cost: `folds` fits of the model on at most max_rows (1 - 1/folds) rows and predictions with
-/// variance of the held-out rows.
+/// variance of the held-out rows; one more with fastest_rows_fold.
 
 #include <string>
 
@@ -53,6 +53,11 @@ struct FitCheckOptions {
   double min_coverage = 0.8;
   /// The held-out coverage FitCheck::latent_variance_scale is solved for, in (0, 1).
   double target_coverage = 0.95;
+  /// Also hold out the fastest 1/folds of the rows (by |qd|) and predict them with the model
+  /// fitted on the slower ones: motion faster than the model was fitted on, as a slow
+  /// training log's model meets it. Its coverage is FitCheck::fastest_coverage, and the
+  /// latent variance scale covers the target on these rows too. One more fit.
+  bool fastest_rows_fold = true;
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
   /// null).
@@ -78,10 +83,15 @@ struct FitCheck {
   /// Per joint, the fraction of its held-out torques within 2 predictive (noisy) standard
   /// deviations of the held-out mean (size N when the check ran, else empty).
   Vector coverage;
+  /// With FitCheckOptions::fastest_rows_fold: per joint, the coverage of the fastest rows'
+  /// torques by the bands of the model fitted on the slower rows (size N when that fit
+  /// succeeded, else empty; NaN for the joints the check did not count).
+  Vector fastest_coverage;
   /// Per joint, the smallest factor kappa >= 1 on the latent (model) variance with which the
   /// band sqrt(kappa latent_var + noise_var) covers `FitCheckOptions::target_coverage` of the
-  /// held-out torques (1 when the band already does; at most kMaxLatentVarianceScale). Size N
-  /// when the check ran, NaN for the joints it did not count.
+  /// held-out torques, of the contiguous blocks and (fastest_rows_fold) of the fastest rows
+  /// each: the larger of the two factors (1 when the bands already cover; at most
+  /// kMaxLatentVarianceScale). Size N when the check ran, NaN for the joints it did not count.
   Vector latent_variance_scale;
   /// One line for a person.
   std::string message;
