@@ -80,38 +80,46 @@ Hyperparameters MotorHyper(const RobotModel& model, const Matrix& Y) {
   return h;
 }
 
-// Per joint, the squared errors and latent variances of the held-out predictions, with every
-// fold fitted here (the check's blocks: ContiguousFolds of the evenly spaced rows).
-std::vector<std::vector<std::pair<double, double>>> HeldOut(const RobotModel& model,
-                                                            const Hyperparameters& h,
-                                                            const Log& log, int folds) {
-  const int m = static_cast<int>(log.X.rows());
-  std::vector<std::vector<std::pair<double, double>>> rows(2);
-  for (const auto& [begin, end] : ContiguousFolds(m, folds)) {
-    const int held = end - begin;
-    Matrix X(m - held, log.X.cols()), Y(m - held, 2);
-    X << log.X.topRows(begin), log.X.bottomRows(m - end);
-    Y << log.Y.topRows(begin), log.Y.bottomRows(m - end);
-    RobotModel fold(model.spec(), 2);
-    EXPECT_EQ(fold.Fit(X, Y, h), Status::kOk);
-    for (int i = begin; i < end; ++i) {
-      Vector mean(2), latent(2), noisy(2);
-      EXPECT_EQ(fold.PredictWithVariance(log.X.row(i).transpose(), mean, latent, noisy),
-                Status::kOk);
-      for (int j = 0; j < 2; ++j) {
-        const double e = log.Y(i, j) - mean[j];
-        rows[static_cast<size_t>(j)].emplace_back(e * e, latent[j]);
-      }
+using Rows = std::vector<std::vector<std::pair<double, double>>>;  // per joint: (e^2, v)
+
+// The model fitted on the rows `train` of the log, and per joint the squared errors and latent
+// variances of its predictions of the rows `test`, appended to *rows.
+void FitAndPredict(const RobotModel& model, const Hyperparameters& h, const Log& log,
+                   const std::vector<int>& train, const std::vector<int>& test, Rows* rows) {
+  Matrix X(static_cast<Eigen::Index>(train.size()), log.X.cols()), Y(X.rows(), 2);
+  for (size_t k = 0; k < train.size(); ++k) {
+    X.row(static_cast<Eigen::Index>(k)) = log.X.row(train[k]);
+    Y.row(static_cast<Eigen::Index>(k)) = log.Y.row(train[k]);
+  }
+  RobotModel fold(model.spec(), 2);
+  EXPECT_EQ(fold.Fit(X, Y, h), Status::kOk);
+  for (int i : test) {
+    Vector mean(2), latent(2), noisy(2);
+    EXPECT_EQ(fold.PredictWithVariance(log.X.row(i).transpose(), mean, latent, noisy),
+              Status::kOk);
+    for (int j = 0; j < 2; ++j) {
+      const double e = log.Y(i, j) - mean[j];
+      (*rows)[static_cast<size_t>(j)].emplace_back(e * e, latent[j]);
     }
+  }
+}
+
+// The held-out predictions of the check's blocks (ContiguousFolds of the rows), every fold
+// fitted here.
+Rows HeldOut(const RobotModel& model, const Hyperparameters& h, const Log& log, int folds) {
+  const int m = static_cast<int>(log.X.rows());
+  Rows rows(2);
+  for (const auto& [begin, end] : ContiguousFolds(m, folds)) {
+    std::vector<int> train, test;
+    for (int i = 0; i < m; ++i) (i >= begin && i < end ? test : train).push_back(i);
+    FitAndPredict(model, h, log, train, test, &rows);
   }
   return rows;
 }
 
 // The same for the fastest 1/folds of the rows (by |qd|), predicted by the model fitted on
 // the slower ones.
-std::vector<std::vector<std::pair<double, double>>> Fastest(const RobotModel& model,
-                                                            const Hyperparameters& h,
-                                                            const Log& log, int folds) {
+Rows Fastest(const RobotModel& model, const Hyperparameters& h, const Log& log, int folds) {
   const int m = static_cast<int>(log.X.rows());
   std::vector<std::pair<double, int>> speed;
   for (int i = 0; i < m; ++i) speed.emplace_back(log.X.row(i).segment(2, 2).squaredNorm(), i);
@@ -122,23 +130,8 @@ std::vector<std::vector<std::pair<double, double>>> Fastest(const RobotModel& mo
   for (int k = 0; k < m; ++k) (k < m - held ? train : test).push_back(speed[k].second);
   std::sort(train.begin(), train.end());
   std::sort(test.begin(), test.end());
-  Matrix X(static_cast<Eigen::Index>(train.size()), 6), Y(X.rows(), 2);
-  for (size_t k = 0; k < train.size(); ++k) {
-    X.row(static_cast<Eigen::Index>(k)) = log.X.row(train[k]);
-    Y.row(static_cast<Eigen::Index>(k)) = log.Y.row(train[k]);
-  }
-  RobotModel fold(model.spec(), 2);
-  EXPECT_EQ(fold.Fit(X, Y, h), Status::kOk);
-  std::vector<std::vector<std::pair<double, double>>> rows(2);
-  for (int i : test) {
-    Vector mean(2), latent(2), noisy(2);
-    EXPECT_EQ(fold.PredictWithVariance(log.X.row(i).transpose(), mean, latent, noisy),
-              Status::kOk);
-    for (int j = 0; j < 2; ++j) {
-      const double e = log.Y(i, j) - mean[j];
-      rows[static_cast<size_t>(j)].emplace_back(e * e, latent[j]);
-    }
-  }
+  Rows rows(2);
+  FitAndPredict(model, h, log, train, test, &rows);
   return rows;
 }
 
