@@ -255,6 +255,12 @@ TEST(CalibrateBands, ScalesTheLatentVarianceAndNothingElse) {
   EXPECT_TRUE(says(calibrated.summary.notes, "before their calibration"));
   EXPECT_FALSE(says(calibrated.summary.warnings, "claims more certainty"));
   EXPECT_TRUE(says(plain.summary.warnings, "claims more certainty"));
+  // The fastest rows' band is named when it is short of the bar too.
+  const Vector& fastest = plain.summary.check.fastest_coverage;
+  ASSERT_EQ(fastest.size(), 2);
+  std::cout << "fastest rows' coverage " << fastest.transpose() << std::endl;
+  EXPECT_EQ(says(plain.summary.warnings, "of the fastest rows' torques"),
+            fastest.minCoeff() < 0.95);
   EXPECT_FALSE(says(plain.summary.notes, "2 sigma bands calibrated"));
   // The same search either way.
   EXPECT_EQ(calibrated.model.hyperparameters().shape, plain.model.hyperparameters().shape);

@@ -767,30 +767,37 @@ std::string JointsText(const std::vector<int>& joints) {
 }
 
 // The warning for joints whose 2 sigma band covered less than min_coverage of their held-out
-// torques in the held-out check (none when it did not run or every band covered enough); with
-// calibrated, the same finding as a note on the bands before their calibration.
+// torques in the held-out check, of its blocks or of the fastest rows (none when it did not
+// run or every band covered enough); with calibrated, the same finding as a note on the bands
+// before their calibration.
 std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_coverage,
                                             bool calibrated) {
   if (!check.ran) return {};
-  std::vector<int> narrow;
-  std::string percents;
-  for (int j = 0; j < static_cast<int>(check.coverage.size()); ++j) {
-    if (check.coverage[j] < min_coverage) {
-      percents += Format("%s%.0f%%", narrow.empty() ? "" : ", ", 100.0 * check.coverage[j]);
-      narrow.push_back(j);
+  // "joints 5 and 6 covered only 71%, 79% of <what>", or empty.
+  auto narrow_text = [min_coverage](const Vector& coverage, const char* what) {
+    std::vector<int> narrow;
+    std::string percents;
+    for (int j = 0; j < static_cast<int>(coverage.size()); ++j) {
+      if (coverage[j] < min_coverage) {
+        percents += Format("%s%.0f%%", narrow.empty() ? "" : ", ", 100.0 * coverage[j]);
+        narrow.push_back(j);
+      }
     }
-  }
-  if (narrow.empty()) return {};
-  if (calibrated) {
-    return {Format("before their calibration, the 2 sigma band of %s covered only %s of the "
-                   "held-out torques",
-                   JointsText(narrow).c_str(), percents.c_str())};
-  }
-  return {Format(
-      "the 2 sigma band of %s covered only %s of the held-out torques (held-out check; about "
-      "95%% when calibrated): the model claims more certainty than it has on motion it was not "
-      "fitted on",
-      JointsText(narrow).c_str(), percents.c_str())};
+    if (narrow.empty()) return std::string();
+    return Format("%s covered only %s of %s", JointsText(narrow).c_str(), percents.c_str(),
+                  what);
+  };
+  const std::string blocks = narrow_text(check.coverage, "the held-out torques");
+  const std::string fastest =
+      narrow_text(check.fastest_coverage, "the fastest rows' torques (fitted on the slower rows)");
+  if (blocks.empty() && fastest.empty()) return {};
+  const std::string finding =
+      "the 2 sigma band of " + (blocks.empty() ? fastest : blocks) +
+      (!blocks.empty() && !fastest.empty() ? ", and of " + fastest : std::string());
+  if (calibrated) return {"before their calibration, " + finding};
+  return {finding +
+          " (held-out check; about 95% when calibrated): the model claims more certainty than "
+          "it has on motion it was not fitted on"};
 }
 
 // Sets the model's latent variance scale from the held-out check (FitOptions::calibrate_bands;
