@@ -296,7 +296,7 @@ TEST(CalibrateBands, ScalesTheLatentVarianceAndNothingElse) {
   char factor[32];
   std::snprintf(factor, sizeof factor, "%.3g", kappa[1]);
   const std::string note = report::CalibratedBandsNote(calibrated.model);
-  EXPECT_NE(note.find(std::string("joint") + (kappa[0] > 1.0 ? "s 1, 2" : " 2") + " scaled by"),
+  EXPECT_NE(note.find(std::string("joint") + (kappa[0] > 1.0 ? "s 1 and 2" : " 2") + " scaled by"),
             std::string::npos)
       << note;
   EXPECT_NE(note.find(factor), std::string::npos) << note;

@@ -254,12 +254,15 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   const std::string folds_text =
       Format("%d contiguous blocks of %d evenly spaced rows%s", options.folds, m,
              skipped > 0 ? Format(", %d not fitted", skipped).c_str() : "");
-  std::string coverage_text;
-  for (int j = 0; j < N; ++j) {
-    if (!counts(j)) continue;
-    coverage_text +=
-        Format("%s%.0f%%", coverage_text.empty() ? "" : " ", 100.0 * check.coverage[j]);
-  }
+  // "89% 98% 72%": the counted joints' coverages.
+  const auto percents = [&counts, N](const Vector& coverage) {
+    std::string text;
+    for (int j = 0; j < N; ++j) {
+      if (counts(j)) text += Format("%s%.0f%%", text.empty() ? "" : " ", 100.0 * coverage[j]);
+    }
+    return text;
+  };
+  const std::string coverage_text = percents(check.coverage);
   if (check.passed) {
     check.message = Format(
         "held-out check passed (%s): largest excursion %.3g spans of the training torque range "
@@ -278,13 +281,8 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
                    (only_joint > 0 ? Format(" of joint %d's held-out torques", only_joint)
                                    : std::string(" of the held-out torques per joint"));
   if (check.fastest_coverage.size() == N) {
-    std::string fastest_text;
-    for (int j = 0; j < N; ++j) {
-      if (!counts(j)) continue;
-      fastest_text += Format("%s%.0f%%", fastest_text.empty() ? "" : " ",
-                             100.0 * check.fastest_coverage[j]);
-    }
-    check.message += ", " + fastest_text + " of the fastest rows' (fitted on the slower ones)";
+    check.message += ", " + percents(check.fastest_coverage) +
+                     " of the fastest rows' (fitted on the slower ones)";
   }
   return check;
 }

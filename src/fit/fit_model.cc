@@ -804,21 +804,16 @@ std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_co
 // a joint the check did not count keeps 1) and says which joints' bands it widened.
 std::string CalibrateBands(const FitCheck& check, double target, RobotModel* model) {
   Vector scale = Vector::Ones(model->num_joints());
-  std::vector<int> widened;
-  std::string factors;
-  for (int j = 0; j < model->num_joints(); ++j) {
-    const double kappa =
-        j < check.latent_variance_scale.size() ? check.latent_variance_scale[j] : 1.0;
-    if (!std::isfinite(kappa) || kappa <= 1.0) continue;
-    scale[j] = kappa;
-    factors += Format("%s%.3g", widened.empty() ? "" : ", ", kappa);
-    widened.push_back(j);
+  for (int j = 0; j < model->num_joints() && j < check.latent_variance_scale.size(); ++j) {
+    const double kappa = check.latent_variance_scale[j];
+    if (std::isfinite(kappa) && kappa > 1.0) scale[j] = kappa;
   }
   model->SetLatentVarianceScale(scale);
-  if (widened.empty()) return {};
-  return Format("2 sigma bands calibrated on the held-out blocks: the latent variance of %s "
-                "scaled by %s (each band then covers at least %.0f%% of its held-out torques)",
-                JointsText(widened).c_str(), factors.c_str(), 100.0 * target);
+  const std::string text = CalibratedBandsText(*model);
+  if (text.empty()) return {};
+  return Format("2 sigma bands calibrated on the held-out blocks: %s (each band then covers at "
+                "least %.0f%% of its held-out torques)",
+                text.c_str(), 100.0 * target);
 }
 
 // Warnings for joints the log never moves or never accelerates (kStillJointRms): the torques
@@ -1114,6 +1109,19 @@ FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
     if (!fit.Report(note)) return fit.Aborted();
   }
   return fit.Finish(fit.search_end(), fit.search_message());
+}
+
+std::string CalibratedBandsText(const RobotModel& model) {
+  const Vector& scale = model.latent_variance_scale();
+  std::vector<int> widened;
+  std::string factors;
+  for (int j = 0; j < static_cast<int>(scale.size()); ++j) {
+    if (scale[j] == 1.0) continue;
+    factors += Format("%s%.3g", widened.empty() ? "" : ", ", scale[j]);
+    widened.push_back(j);
+  }
+  if (widened.empty()) return {};
+  return "the latent variance of " + JointsText(widened) + " scaled by " + factors;
 }
 
 FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,

@@ -428,7 +428,7 @@ std::string ModelFileText(const RobotModel& model) {
   doc["format"] = kModelFileFormat;
   // Models with shared hyper-parameters stay readable by builds that read version 2.
   // A calibrated model too needs a reader that applies its latent variance scale.
-  const bool scaled = !model.latent_variance_scale().isOnes(0.0);
+  const bool scaled = model.bands_calibrated();
   doc["version"] =
       h.is_per_output() || scaled ? kModelFileVersion : kSharedModelFileVersion;
   doc["model"] = ToString(model.spec());

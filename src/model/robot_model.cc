@@ -357,7 +357,7 @@ RobotModelState RobotModel::State() const {
   state.num_joints = num_joints_;
   state.options = options_;
   state.hyperparameters = hyper_;
-  if (!latent_variance_scale_.isOnes(0.0)) state.latent_variance_scale = latent_variance_scale_;
+  if (bands_calibrated()) state.latent_variance_scale = latent_variance_scale_;
   state.form = fitted_gp.form();
   if (const EulerLagrangeGP* euler = fitted_gp.euler_lagrange()) {
     state.inputs = euler->inputs();
@@ -544,7 +544,7 @@ Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
       prior_mean_.get(), num_joints_, x,
       gp().PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace.gp), mean,
       &workspace.prior_mean);
-  if (status == Status::kOk && !latent_variance_scale_.isOnes(0.0)) {
+  if (status == Status::kOk && bands_calibrated()) {
     // kappa v + sigma^2 = (v + sigma^2) + (kappa - 1) v; allocation-free.
     noisy_variance.array() +=
         (latent_variance_scale_.array() - 1.0) * latent_variance.array();

@@ -752,9 +752,7 @@ OnlineLearnerOptions OnlineLearnerOptionsFor(const RobotModel& model) {
   o.prior_variance = PriorVariance(*model.feature_map(), h);
   o.noise_variance = h.noise_variance();
   o.output_scales = h.output_scales();
-  if (!model.latent_variance_scale().isOnes(0.0)) {
-    o.latent_variance_scale = model.latent_variance_scale();
-  }
+  if (model.bands_calibrated()) o.latent_variance_scale = model.latent_variance_scale();
   return o;
 }
 

@@ -46,7 +46,7 @@ Vector RmsRows(const Matrix& errors, Eigen::Index begin, Eigen::Index end) {
 // A fitted model's calibrated bands (RobotModel::latent_variance_scale), empty when they are
 // the posterior's own.
 Vector CalibratedScale(const RobotModel& model) {
-  return model.latent_variance_scale().isOnes(0.0) ? Vector() : model.latent_variance_scale();
+  return model.bands_calibrated() ? model.latent_variance_scale() : Vector();
 }
 
 OnlineLearnerOptions LearnerOptions(const RobotModel& model, const Hyperparameters& hyper) {

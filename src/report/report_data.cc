@@ -113,21 +113,9 @@ ReportData DiagnosisReportData(const RobotModel& model, const RobotData& data,
 }
 
 std::string CalibratedBandsNote(const RobotModel& model) {
-  const Vector& scale = model.latent_variance_scale();
-  std::string joints, factors;
-  int count = 0;
-  for (Eigen::Index j = 0; j < scale.size(); ++j) {
-    if (scale[j] == 1.0) continue;
-    char factor[32];
-    std::snprintf(factor, sizeof factor, "%.3g", scale[j]);
-    joints += (count ? ", " : "") + std::to_string(j + 1);
-    factors += (count ? ", " : "") + std::string(factor);
-    ++count;
-  }
-  if (count == 0) return {};
-  return std::string("The 2 sigma bands are calibrated on the fit's held-out check: the latent "
-                     "variance of joint") +
-         (count > 1 ? "s " : " ") + joints + " scaled by " + factors + ".";
+  const std::string text = CalibratedBandsText(model);
+  if (text.empty()) return {};
+  return "The 2 sigma bands are calibrated on the fit's held-out check: " + text + ".";
 }
 
 ReportData ReplayReportData(const ReplaySummary& summary, const RobotData& data,

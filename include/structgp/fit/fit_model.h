@@ -247,6 +247,10 @@ struct FitSummary {
 FitSummary FitModel(const FitOptions& options, const ConstMatrixRef& states,
                     const ConstMatrixRef& torques, const ConstVectorRef& t, RobotModel* model);
 
+/// "the latent variance of joints 1, 5 and 6 scaled by 4.65, 10.1, 7.92": a model's calibrated
+/// bands (RobotModel::latent_variance_scale) in words, empty when they are the posterior's own.
+std::string CalibratedBandsText(const RobotModel& model);
+
 /// A model with the summary of its fit.
 struct FittedModel {
   RobotModel model;

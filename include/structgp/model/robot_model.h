@@ -236,6 +236,8 @@ class RobotModel {
   /// 2 sigma band covers FitCheckOptions::target_coverage of held-out blocks), and Fit resets
   /// it to 1 (new hyper-parameters, a new calibration). Size N.
   const Vector& latent_variance_scale() const { return latent_variance_scale_; }
+  /// True when latent_variance_scale() is not all 1.
+  bool bands_calibrated() const { return !latent_variance_scale_.isOnes(0.0); }
   /// Sets latent_variance_scale(). Throws std::invalid_argument unless scale has N entries,
   /// each finite and > 0.
   void SetLatentVarianceScale(const Vector& scale);
