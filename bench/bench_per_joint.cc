@@ -78,7 +78,9 @@ BENCHMARK(BM_Fit)->Args({2, 0})->Args({2, 1})->Args({3, 0})->Args({3, 1})
 void BM_PredictWithVariance(benchmark::State& state) {
   const int joints = static_cast<int>(state.range(0));
   const Problem p = MakeProblem(joints, 3000);
-  const RobotModel model = Fitted(joints, state.range(1) != 0, p);
+  RobotModel model = Fitted(joints, state.range(1) != 0, p);
+  // Third argument 1: calibrated bands (a latent variance scale on every joint).
+  if (state.range(2) != 0) model.SetLatentVarianceScale(Vector::Constant(joints, 2.0));
   RobotModel::Workspace workspace = model.MakeWorkspace();
   Vector x(3 * joints), mean(joints), latent(joints), noisy(joints);
   int i = 0;
@@ -92,7 +94,9 @@ void BM_PredictWithVariance(benchmark::State& state) {
       static_cast<double>(structgp::testing::TotalAllocations() - allocs_before) /
       static_cast<double>(state.iterations()));
 }
-BENCHMARK(BM_PredictWithVariance)->Args({2, 0})->Args({2, 1})->Args({3, 0})->Args({3, 1})
+BENCHMARK(BM_PredictWithVariance)
+    ->Args({2, 0, 0})->Args({2, 1, 0})->Args({3, 0, 0})->Args({3, 1, 0})
+    ->Args({2, 0, 1})->Args({3, 0, 1})
     ->Unit(benchmark::kMicrosecond);
 
 void BM_Add(benchmark::State& state) {
