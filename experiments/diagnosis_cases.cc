@@ -59,9 +59,9 @@
 // suggested joint: lagk is one GP of every joint, so a refit changes the other joints too). Then known effects
 // are added to the measured torques of the held-out part on one joint at a time (the --joints
 // joints with the widest range of q in that part), at a = size x the joint's noise level
-// sigma_j (successive differences of the
-// model's residual on that part, sigma_j = sqrt(mean(diff(r_j)^2) / 2), as the diagnosis
-// estimates it):
+// sigma_j: the uninjected diagnosis's estimate from the successive differences of the
+// model's residual on that part (JointFinding::noise_std_estimate; --noise-from=differences:
+// sqrt(mean(diff(r_j)^2) / 2), which the signal's own jumps inflate, as before):
 //   cogging  a sin(2 pi q_j / P + phase), P in --periods;  coulomb  a tanh(qd_j / 0.01);
 //   offset   a;                                            drift    a (t - t_begin) / T,
 // T the span of the part; the seed (--seeds) draws the sign of a and the cogging phase. Found:
@@ -171,6 +171,11 @@ struct Flags {
   int max_train = 2500;     // evenly spaced training rows (0: all)
   int heldout_rows = 1000;  // the first rows of the held-out part only (0: all)
   int real_ml_max_rows = 1000;  // the CLI's default
+  // The noise level the injections are sized by: "diagnosis", the uninjected diagnosis's own
+  // estimate (JointFinding::noise_std_estimate: the median absolute successive difference of
+  // the residual, robust to the jumps of the signal); "differences", the RMS of the successive
+  // differences (before commit 'diagnosis_cases: injections sized by the diagnosis's noise').
+  std::string noise_from = "diagnosis";
   // Both.
   std::string out, findings_dir;
   bool quick = false;
@@ -880,6 +885,9 @@ RealResult RunReal(const Flags& f) {
     const Matrix* train_X = f.with_training ? &log.train.X : nullptr;
     const Diagnosis d0 =
         RunDiagnosis(*fit.model, X, Y, t, &base.seconds, train_X, &log.train.Y, &log.train.t);
+    if (f.noise_from == "diagnosis" && d0.joints.size() == static_cast<size_t>(N)) {
+      for (int j = 0; j < N; ++j) base.noise[j] = d0.joints[static_cast<size_t>(j)].noise_std_estimate;
+    }
     WriteFindings(f, "real_" + log.name + "_uninjected", d0);
     base.diagnosed = d0.status == DiagnosisStatus::kOk;
     if (!base.diagnosed) base.note = std::string(ToString(d0.status)) + ": " + d0.message;
@@ -1001,7 +1009,7 @@ RealResult RunReal(const Flags& f) {
   // Tables.
   std::printf("\n### Part B: real logs, model %s (CLI defaults) fitted on the training part\n\n"
               "Uninjected held-out part:\n\n"
-              "| log | model | noise per joint (successive differences) | suggestions | held-out "
+              "| log | model | noise per joint (--noise-from) | suggestions | held-out "
               "RMS/noise | refit on training + suggestions | the suggested joints | fit s | "
               "diagnosis s | other findings |\n|---|---|---|---|---|---|---|---|---|---|\n",
               ToString(spec).c_str());
@@ -1232,6 +1240,11 @@ int main(int argc, char** argv) {
   AddFlag(&app, "--heldout-rows", &f.heldout_rows,
           "first rows of part B's held-out part only (0: all)")
       ->check(AtLeast(0));
+  AddFlag(&app, "--noise-from", &f.noise_from,
+          "part B: the noise level the injections are sized by (and the held-out RMS divided "
+          "by): diagnosis (the uninjected diagnosis's estimate, robust) or differences (the RMS "
+          "of the residual's successive differences)")
+      ->check(CLI::IsMember({"diagnosis", "differences"}));
   AddFlag(&app, "--out", &f.out, "CSV file of every row");
   AddFlag(&app, "--findings-dir", &f.findings_dir, "write every diagnosis's JSON here");
   AddFlag(&app, "--rounds", &f.rounds,
