@@ -99,6 +99,39 @@ double LatentVarianceScale(const std::vector<std::pair<double, double>>& rows,
   return std::clamp(needed[k], 1.0, kMaxLatentVarianceScale);
 }
 
+// One held-out fold: a fresh model of model's spec and options with hyper-parameters `hyper`,
+// fitted on the rows `train` of X, Y (in the order given), predicts the rows `test`: the mean
+// and latent std (rows of test x N) and the measured torques of those rows. False when the fit
+// fails numerically.
+struct HeldOutFold {
+  Matrix mean, latent_std, measured;
+};
+bool FitAndPredict(const RobotModel& model, const Hyperparameters& hyper, const Matrix& X,
+                   const Matrix& Y, const std::vector<int>& train, const std::vector<int>& test,
+                   HeldOutFold* fold) {
+  RobotModel fitted(model.spec(), model.num_joints(), model.options());
+  if (fitted.Fit(SelectRows(X, train), SelectRows(Y, train), hyper) != Status::kOk) return false;
+  fitted.PredictRows(SelectRows(X, test), &fold->mean, &fold->latent_std);
+  fold->measured = SelectRows(Y, test);
+  return true;
+}
+
+// Appends each counted joint's (squared error, latent variance) of the fold's rows with a
+// finite mean to errors[j].
+template <typename Counts>
+void AppendErrors(const HeldOutFold& fold, const Counts& counts,
+                  std::vector<std::vector<std::pair<double, double>>>* errors) {
+  for (Eigen::Index i = 0; i < fold.mean.rows(); ++i) {
+    for (Eigen::Index j = 0; j < fold.mean.cols(); ++j) {
+      const double mu = fold.mean(i, j);
+      if (!counts(static_cast<int>(j)) || !std::isfinite(mu)) continue;
+      const double residual = fold.measured(i, j) - mu;
+      const double std = fold.latent_std(i, j);
+      (*errors)[static_cast<size_t>(j)].emplace_back(residual * residual, std * std);
+    }
+  }
+}
+
 }  // namespace
 
 FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hyper,
@@ -140,21 +173,20 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
   int skipped = 0;
   for (const auto& [begin, end] : ContiguousFolds(m, options.folds)) {
     const int held = end - begin;
-    Matrix Xtrain(m - held, Xs.cols()), Ytrain(m - held, N);
-    Xtrain << Xs.topRows(begin), Xs.bottomRows(m - end);
-    Ytrain << Ys.topRows(begin), Ys.bottomRows(m - end);
-    RobotModel fold(model.spec(), N, model.options());
-    if (fold.Fit(Xtrain, Ytrain, hyper) != Status::kOk) {
+    std::vector<int> train, test;
+    for (int i = 0; i < m; ++i) (i >= begin && i < end ? test : train).push_back(i);
+    HeldOutFold fold;
+    if (!FitAndPredict(model, hyper, Xs, Ys, train, test, &fold)) {
       ++skipped;
       continue;
     }
-    Matrix mean, latent_std;
-    fold.PredictRows(Xs.middleRows(begin, held), &mean, &latent_std);
-    const Vector fold_coverage =
-        BandCoverage(mean, latent_std, noise_std, Ys.middleRows(begin, held));
+    const Matrix& mean = fold.mean;
+    const Matrix& latent_std = fold.latent_std;
+    const Vector fold_coverage = BandCoverage(mean, latent_std, noise_std, fold.measured);
     for (int j = 0; j < N; ++j) {
       covered[static_cast<size_t>(j)] += static_cast<int>(std::lround(fold_coverage[j] * held));
     }
+    AppendErrors(fold, counts, &errors);
     for (int i = 0; i < held; ++i) {
       for (int j = 0; j < N; ++j) {
         if (!counts(j)) continue;
@@ -167,9 +199,6 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
           ++confident[static_cast<size_t>(j)];
           continue;
         }
-        const double residual = Ys(begin + i, j) - mu;
-        errors[static_cast<size_t>(j)].emplace_back(residual * residual,
-                                                    latent_std(i, j) * latent_std(i, j));
         const double std = std::hypot(latent_std(i, j), noise_std[j]);
         if (outside > 0.0) {
           const bool sure = outside > options.confidence_sigmas * std;
@@ -200,20 +229,10 @@ FitCheck CheckOnHeldOutBlocks(const RobotModel& model, const Hyperparameters& hy
     std::vector<int> test(order.end() - held, order.end());
     std::sort(train.begin(), train.end());  // in time order
     std::sort(test.begin(), test.end());
-    RobotModel fold(model.spec(), N, model.options());
-    if (fold.Fit(SelectRows(Xs, train), SelectRows(Ys, train), hyper) == Status::kOk) {
-      Matrix mean, latent_std;
-      fold.PredictRows(SelectRows(Xs, test), &mean, &latent_std);
-      const Matrix Yt = SelectRows(Ys, test);
-      check.fastest_coverage = BandCoverage(mean, latent_std, noise_std, Yt);
-      for (int i = 0; i < held; ++i) {
-        for (int j = 0; j < N; ++j) {
-          if (!counts(j) || !std::isfinite(mean(i, j))) continue;
-          const double residual = Yt(i, j) - mean(i, j);
-          fastest[static_cast<size_t>(j)].emplace_back(residual * residual,
-                                                       latent_std(i, j) * latent_std(i, j));
-        }
-      }
+    HeldOutFold fold;
+    if (FitAndPredict(model, hyper, Xs, Ys, train, test, &fold)) {
+      check.fastest_coverage = BandCoverage(fold.mean, fold.latent_std, noise_std, fold.measured);
+      AppendErrors(fold, counts, &fastest);
       for (int j = 0; j < N; ++j) {
         if (!counts(j)) check.fastest_coverage[j] = std::numeric_limits<double>::quiet_NaN();
       }
