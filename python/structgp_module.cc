@@ -659,6 +659,8 @@ void BindDiagnosis(py::module_& m) {
                              "'explained', 'coverage', 'missing_effect' or 'unexplained'")
       .def_property_readonly("verdict_message", [](const DiagnosisResult& d) { return d.diagnosis.coverage.message; })
       .def_property_readonly("coverage_joints", [](const DiagnosisResult& d) { return d.diagnosis.coverage.coverage_joints; })
+      .def_property_readonly("unexplained_joints", [](const DiagnosisResult& d) { return d.diagnosis.coverage.unexplained_joints; },
+                             "joints the model, refitted on the log with the suggestions, still does not predict to the noise")
       .def_property_readonly("suggested_model",
                              [](const DiagnosisResult& d) { return ModelLabel(WithSuggestions(d.spec, d.diagnosis)); },
                              "The diagnosed model with every suggestion added, as Model() reads it")

@@ -499,9 +499,29 @@ TEST(Calibration, AnotherJointDoesNotChangeHowAJointsCandidatesAreTested) {
     }
     return gap;
   };
+  // The joints that stay above the noise, refitted on the log with their suggestions, by the
+  // rule of CoverageFinding::unexplained_joints, from the joints' numbers.
+  auto left_above_noise = [](const Diagnosis& d) {
+    const double tolerance = DiagnosisOptions().noise_tolerance;
+    std::vector<int> joints;
+    for (const JointFinding& f : d.joints) {
+      double left = f.refit_rms;
+      for (const Suggestion& s : d.suggestions) {
+        if (s.joint == f.joint) left = std::min(left, s.residual_rms_after);
+      }
+      const double noise = tolerance * f.noise_std_estimate;
+      if (f.rms > noise && left > noise) joints.push_back(f.joint);
+    }
+    return joints;
+  };
   const Diagnosis plain = Diagnose(model, scenario.test.X, scenario.test.Y, scenario.test.t);
   ASSERT_FALSE(plain.suggestions.empty());
   EXPECT_EQ(plain.suggestions.front().spec.substr(0, 9), "coulomb@2");
+  // The Coulomb step explains the log: nothing is left above the noise.
+  EXPECT_EQ(plain.coverage.verdict, Verdict::kMissingEffect);
+  EXPECT_TRUE(plain.coverage.unexplained_joints.empty()) << plain.coverage.message;
+  EXPECT_TRUE(left_above_noise(plain).empty());
+  EXPECT_EQ(plain.coverage.message.find("still stays above the noise"), std::string::npos);
   const int gap = gap_of(plain, 2);
   ASSERT_GT(gap, 0);
 
@@ -523,6 +543,17 @@ TEST(Calibration, AnotherJointDoesNotChangeHowAJointsCandidatesAreTested) {
   }
   EXPECT_TRUE(coulomb);
   EXPECT_EQ(gap2, gap);
+  // Joint 1's wander is no candidate effect and no function of the state: the verdict names it
+  // next to the suggestions, and joint 2, explained by its Coulomb step, is not named.
+  std::printf("verdict: %s\n", d.coverage.message.c_str());
+  EXPECT_EQ(d.coverage.verdict, Verdict::kMissingEffect);
+  EXPECT_EQ(d.coverage.unexplained_joints, std::vector<int>{1});
+  EXPECT_EQ(left_above_noise(d), std::vector<int>{1});
+  EXPECT_NE(d.coverage.message.find("still stays above the noise on joint 1 ("),
+            std::string::npos)
+      << d.coverage.message;
+  EXPECT_EQ(nlohmann::json::parse(ToJson(d))["coverage"]["unexplained_joints"],
+            nlohmann::json::array({1}));
   // Joint 1's own blocks are further apart now (when any of its candidates got that far).
   if (gap1 >= 0) {
     EXPECT_GT(gap1, gap);

@@ -741,10 +741,16 @@ TEST(Report, ShowsTheVerdictFirstWithItsMessage) {
   for (const Case& c : {Case{Verdict::kExplained, "explained", "Explained:"},
                         Case{Verdict::kCoverage, "coverage", "Coverage, not missing physics"},
                         Case{Verdict::kMissingEffect, "missing_effect", "Missing effects:"},
-                        Case{Verdict::kUnexplained, "unexplained", "Unexplained:"}}) {
-    SCOPED_TRACE(c.name);
+                        Case{Verdict::kUnexplained, "unexplained", "Unexplained:"},
+                        Case{Verdict::kMissingEffect, "missing_effect",
+                             "Missing effects, and error they do not explain:"}}) {
+    SCOPED_TRACE(c.headline);
     ReportData data = MakeReport(2, 100, c.verdict == Verdict::kMissingEffect);
     data.diagnosis.coverage.verdict = c.verdict;
+    // The second missing-effect case: a joint the suggestions do not explain.
+    if (std::string(c.headline).find("and error") != std::string::npos) {
+      data.diagnosis.coverage.unexplained_joints = {1};
+    }
     data.diagnosis.coverage.message = std::string("because ") + kHostileFile;
     const std::string html = RenderHtml(data);
     const std::size_t verdict = html.find("<section id=\"verdict\">");

@@ -146,6 +146,9 @@ def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     assert [(a.spec, a.scope, a.score) for a in first.alternatives] == \
         [(a["spec"], a["scope"], a["score"]) for a in expected["suggestions"][0]["alternatives"]]
     assert [f.rms for f in diagnosis.joints] == [f["rms"] for f in expected["joints"]]
+    assert (diagnosis.verdict, diagnosis.verdict_message) == \
+        (expected["coverage"]["verdict"], expected["coverage"]["message"])
+    assert diagnosis.unexplained_joints == expected["coverage"]["unexplained_joints"]
     # The refused candidates too, with the bar each failed.
     assert [(r.candidate.spec, r.bar, r.reason) for r in diagnosis.refused] == \
         [(r["spec"], r["refused_by"], r["reason"]) for r in expected["refused"]]

@@ -21,6 +21,19 @@ std::string Format(const char* format, ...) {
   return out;
 }
 
+std::string JointList(const std::vector<int>& joints) {
+  std::string text;
+  for (size_t k = 0; k < joints.size(); ++k) {
+    if (k > 0) text += k + 1 == joints.size() ? " and " : ", ";
+    text += std::to_string(joints[k]);
+  }
+  return text;
+}
+
+std::string JointsText(const std::vector<int>& joints) {
+  return (joints.size() == 1 ? "joint " : "joints ") + JointList(joints);
+}
+
 std::string Table(const std::vector<std::vector<std::string>>& rows, int indent) {
   std::vector<size_t> width;
   for (const auto& row : rows) {

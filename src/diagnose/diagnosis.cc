@@ -1382,8 +1382,10 @@ void MeasureCoverage(const ConstMatrixRef& X, const Vector& t, const Matrix& tra
 void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
   CoverageFinding& c = d->coverage;
   c.coverage_joints.clear();
+  c.unexplained_joints.clear();
   bool all_explained = true, refit_short = false;
   std::string worst;
+  std::vector<double> left_over;  // of the unexplained joints, in noise levels
   for (const JointFinding& f : d->joints) {
     const double noise = options.noise_tolerance * f.noise_std_estimate;
     if (f.rms > noise) all_explained = false;
@@ -1393,9 +1395,29 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
       worst += internal::Format("%sjoint %d: %.3g on the log, %.3g refitted there", worst.empty() ? "" : "; ",
                                 f.joint, f.rms, f.refit_rms);
     }
+    // What the refit on the log leaves with the joint's suggestions (each suggestion's
+    // residual is with those chosen before it on its joint: the smallest is the fullest set).
+    double refit_left = f.refit_rms;
+    for (const Suggestion& s : d->suggestions) {
+      if (s.joint == f.joint) refit_left = std::min(refit_left, s.residual_rms_after);
+    }
+    if (f.rms > noise && refit_left > noise) {
+      c.unexplained_joints.push_back(f.joint);
+      left_over.push_back(f.noise_std_estimate > 0 ? refit_left / f.noise_std_estimate : HUGE_VAL);
+    }
   }
   std::string joints;
   for (int j : c.coverage_joints) joints += (joints.empty() ? "" : ", ") + std::to_string(j);
+  // "joints 1 and 3 (21 and 9.9 times the noise)"
+  std::string unexplained;
+  if (!c.unexplained_joints.empty()) {
+    std::string ratios;
+    for (size_t k = 0; k < left_over.size(); ++k) {
+      ratios += internal::Format("%s%.2g", k == 0 ? "" : k + 1 == left_over.size() ? " and " : ", ",
+                                 left_over[k]);
+    }
+    unexplained = internal::JointsText(c.unexplained_joints) + " (" + ratios + " times the noise)";
+  }
   const std::string coverage_text =
       c.coverage_joints.empty()
           ? ""
@@ -1407,13 +1429,21 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
     c.verdict = Verdict::kMissingEffect;
     c.message = "effects are missing (see the suggestions)" +
                 (coverage_text.empty() ? std::string() : "; also " + coverage_text);
+    if (!unexplained.empty()) {
+      c.message += "; but refitted on this log with them the model still stays above the noise "
+                   "on " + unexplained + ": the suggestions explain part of the error, and the "
+                   "rest is something neither the model nor the candidate effects express (for "
+                   "instance a load that changes during the log, or a state the log does not "
+                   "record)";
+    }
   } else if (!c.coverage_joints.empty()) {
     c.verdict = Verdict::kCoverage;
     c.message = coverage_text;
   } else if (refit_short && !all_explained) {
     c.verdict = Verdict::kUnexplained;
-    c.message = "refitted on this log the model stays above the noise on some joint, and no "
-                "candidate effect explains it";
+    c.message = "refitted on this log the model stays above the noise on " +
+                (unexplained.empty() ? std::string("some joint") : unexplained) +
+                ", and no candidate effect explains it";
   } else {
     c.verdict = Verdict::kExplained;
     c.message = "the model explains this log to the noise";
@@ -1627,6 +1657,7 @@ std::string ToJson(const Diagnosis& d) {
   c["verdict"] = ToString(d.coverage.verdict);
   c["message"] = d.coverage.message;
   c["coverage_joints"] = d.coverage.coverage_joints;
+  c["unexplained_joints"] = d.coverage.unexplained_joints;
   if (d.coverage.distance.size() != 0) {
     c["distance_time"] = std::vector<double>(d.coverage.distance_time.data(),
                                              d.coverage.distance_time.data() +

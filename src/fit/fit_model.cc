@@ -751,21 +751,6 @@ void CheckData(const RobotModel& model, const ConstMatrixRef& states, const Cons
 // tell: a log of static poses, or rows that all fall on via points.
 constexpr double kStillJointRms = 1e-6;
 
-// "1", "1 and 3", "1, 2 and 3".
-std::string JointList(const std::vector<int>& joints) {
-  std::string text;
-  for (size_t k = 0; k < joints.size(); ++k) {
-    if (k > 0) text += k + 1 == joints.size() ? " and " : ", ";
-    text += std::to_string(joints[k] + 1);
-  }
-  return text;
-}
-
-// "joint 1", "joints 1 and 3".
-std::string JointsText(const std::vector<int>& joints) {
-  return (joints.size() == 1 ? "joint " : "joints ") + JointList(joints);
-}
-
 // The warning for joints whose 2 sigma band covered less than min_coverage of their held-out
 // torques in the held-out check, of its blocks or of the fastest rows (none when it did not
 // run or every band covered enough); with calibrated, the same finding as a note on the bands
@@ -780,11 +765,11 @@ std::vector<std::string> NarrowBandWarnings(const FitCheck& check, double min_co
     for (int j = 0; j < static_cast<int>(coverage.size()); ++j) {
       if (coverage[j] < min_coverage) {
         percents += Format("%s%.0f%%", narrow.empty() ? "" : ", ", 100.0 * coverage[j]);
-        narrow.push_back(j);
+        narrow.push_back(j + 1);
       }
     }
     if (narrow.empty()) return std::string();
-    return Format("%s covered only %s of %s", JointsText(narrow).c_str(), percents.c_str(),
+    return Format("%s covered only %s of %s", internal::JointsText(narrow).c_str(), percents.c_str(),
                   what);
   };
   const std::string blocks = narrow_text(check.coverage, "the held-out torques");
@@ -833,10 +818,10 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
     const double velocity = rms(N + j);
     const double acceleration = rms(2 * N + j);
     if (velocity <= kStillJointRms) {
-      still.push_back(j);
+      still.push_back(j + 1);
       largest_velocity = std::max(largest_velocity, velocity);
     } else if (acceleration <= kStillJointRms) {
-      unaccelerated.push_back(j);
+      unaccelerated.push_back(j + 1);
       largest_acceleration = std::max(largest_acceleration, acceleration);
     }
   }
@@ -850,7 +835,7 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
         "%s never move%s in the %d rows (%s): the fit sees none of the friction, inertial or "
         "velocity (Coriolis, centrifugal) torques of %s, and the model's predictions of them on "
         "motion rest on its prior alone",
-        JointsText(still).c_str(), still.size() == 1 ? "s" : "", rows,
+        internal::JointsText(still).c_str(), still.size() == 1 ? "s" : "", rows,
         size_text("velocity", largest_velocity, "rad/s").c_str(),
         still.size() == 1 ? "its motion" : "their motion"));
   }
@@ -858,7 +843,7 @@ std::vector<std::string> StillJointWarnings(const ConstMatrixRef& states) {
     warnings.push_back(Format(
         "%s never accelerate%s in the %d rows (%s): the fit sees no inertial torque of %s, and "
         "the model's predictions of it on accelerating motion rest on its prior alone",
-        JointsText(unaccelerated).c_str(), unaccelerated.size() == 1 ? "s" : "", rows,
+        internal::JointsText(unaccelerated).c_str(), unaccelerated.size() == 1 ? "s" : "", rows,
         size_text("acceleration", largest_acceleration, "rad/s^2").c_str(),
         unaccelerated.size() == 1 ? "its acceleration" : "their accelerations"));
   }
@@ -1118,10 +1103,10 @@ std::string CalibratedBandsText(const RobotModel& model) {
   for (int j = 0; j < static_cast<int>(scale.size()); ++j) {
     if (scale[j] == 1.0) continue;
     factors += Format("%s%.3g", widened.empty() ? "" : ", ", scale[j]);
-    widened.push_back(j);
+    widened.push_back(j + 1);
   }
   if (widened.empty()) return {};
-  return "the latent variance of " + JointsText(widened) + " scaled by " + factors;
+  return "the latent variance of " + internal::JointsText(widened) + " scaled by " + factors;
 }
 
 FittedModel FitModel(const ModelSpec& spec, const ConstMatrixRef& states,

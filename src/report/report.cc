@@ -622,7 +622,11 @@ void AppendVerdict(const ReportData& data, std::string* html) {
           "Retrain with them.";
       break;
     case Verdict::kMissingEffect:
-      headline = "Missing effects: the model lacks physics that the suggestions below add.";
+      headline = c.unexplained_joints.empty()
+                     ? "Missing effects: the model lacks physics that the suggestions below add."
+                     : "Missing effects, and error they do not explain: the suggestions below "
+                       "add physics the model lacks, and part of the error stays above the "
+                       "noise even with them.";
       break;
     case Verdict::kUnexplained:
       headline =

@@ -286,7 +286,8 @@ enum class Verdict {
   kCoverage,
   /// Effects were suggested.
   kMissingEffect,
-  /// The refit does not reach the noise on some joint, and no candidate effect explains it.
+  /// The refit does not reach the noise on some joint, and no candidate effect explains it
+  /// (CoverageFinding::unexplained_joints).
   kUnexplained,
 };
 
@@ -303,6 +304,12 @@ struct CoverageFinding {
   Verdict verdict = Verdict::kExplained;
   std::string message;             ///< one sentence for people
   std::vector<int> coverage_joints;  ///< 1-based joints whose error is coverage, not physics
+  /// 1-based joints that the model does not predict to the noise and that, refitted on this
+  /// log with the suggestions on that joint (without any when it has none), still stay above
+  /// noise_tolerance times the noise: error that neither the model class nor the candidate
+  /// effects explain (a load that changes during the log, a state its inputs do not hold).
+  /// With verdict kMissingEffect: the suggestions explain part of the error only.
+  std::vector<int> unexplained_joints;
   /// With DiagnosisOptions::training_inputs: distance of the log's rows to the nearest training
   /// state, per joint in the joint's standardised (q, qd, qdd) (1 = one training standard
   /// deviation away), decimated in time to at most 400 points (the largest distance of each

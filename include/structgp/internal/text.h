@@ -13,6 +13,12 @@ namespace internal {
 /// printf-style formatting into a string.
 std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
 
+/// "1", "1 and 3", "1, 2 and 3": joints (1-based) as a person reads them.
+std::string JointList(const std::vector<int>& joints);
+
+/// "joint 1", "joints 1 and 3".
+std::string JointsText(const std::vector<int>& joints);
+
 /// A table with aligned columns; rows[0] is the header. Columns of numbers are right-aligned;
 /// the first column and columns of text left-aligned ("-" and "n/a" count as neither).
 std::string Table(const std::vector<std::vector<std::string>>& rows, int indent = 2);
