@@ -589,6 +589,8 @@ void BindDiagnosis(py::module_& m) {
       .def_readonly("noise_std_estimate", &JointFinding::noise_std_estimate)
       .def_readonly("refit_rms", &JointFinding::refit_rms,
                     "residual RMS of the model refitted on the diagnosed data")
+      .def_readonly("residual_rms_with_suggestions", &JointFinding::residual_rms_with_suggestions,
+                    "residual RMS of the diagnosis's refit with this joint's suggestions (-1: not computed)")
       .def_readonly("outside_fraction", &JointFinding::outside_fraction)
       .def_readonly("max_distance", &JointFinding::max_distance)
       .def_readonly("concentrations", &JointFinding::concentrations)

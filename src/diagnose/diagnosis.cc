@@ -1324,6 +1324,22 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
       picks.emplace_back(ci, s);
     }
   }
+  // What each joint's final suggestions leave of its error on the log (the model's columns and
+  // exactly those suggestions' columns, in the fit the candidates were scored in).
+  for (int j = 0; j < N; ++j) {
+    if (only_joint > 0 && j + 1 != only_joint) continue;
+    Index cols(static_cast<size_t>(base_map->dim()));
+    std::iota(cols.begin(), cols.end(), 0);
+    for (const auto& [ci, s] : picks) {
+      if (s.joint != j + 1) continue;
+      const Index& c = candidates[static_cast<size_t>(ci)].cols;
+      cols.insert(cols.end(), c.begin(), c.end());
+    }
+    BaseFits fit;
+    if (!fit_all(cols, &fit)) continue;
+    out.joints[static_cast<size_t>(j)].residual_rms_with_suggestions =
+        std::sqrt(fit.residual.col(j).tail(m_log).squaredNorm() / m_log);
+  }
   for (auto& [ci, s] : picks) out.suggestions.push_back(std::move(s));
   for (auto& [key, r] : refused) out.refused.push_back(std::move(r));
   OrderFindings(options, &out);
@@ -1385,7 +1401,6 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
   c.unexplained_joints.clear();
   bool all_explained = true, refit_short = false;
   std::string worst;
-  std::vector<double> left_over;  // of the unexplained joints, in noise levels
   for (const JointFinding& f : d->joints) {
     const double noise = options.noise_tolerance * f.noise_std_estimate;
     if (f.rms > noise) all_explained = false;
@@ -1395,58 +1410,78 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
       worst += internal::Format("%sjoint %d: %.3g on the log, %.3g refitted there", worst.empty() ? "" : "; ",
                                 f.joint, f.rms, f.refit_rms);
     }
-    // What the refit on the log leaves with the joint's suggestions (each suggestion's
-    // residual is with those chosen before it on its joint: the smallest is the fullest set).
-    double refit_left = f.refit_rms;
-    for (const Suggestion& s : d->suggestions) {
-      if (s.joint == f.joint) refit_left = std::min(refit_left, s.residual_rms_after);
-    }
-    if (f.rms > noise && refit_left > noise) {
-      c.unexplained_joints.push_back(f.joint);
-      left_over.push_back(f.noise_std_estimate > 0 ? refit_left / f.noise_std_estimate : HUGE_VAL);
-    }
   }
-  std::string joints;
-  for (int j : c.coverage_joints) joints += (joints.empty() ? "" : ", ") + std::to_string(j);
-  // "joints 1 and 3 (21 and 9.9 times the noise)"
-  std::string unexplained;
-  if (!c.unexplained_joints.empty()) {
-    std::string ratios;
-    for (size_t k = 0; k < left_over.size(); ++k) {
-      ratios += internal::Format("%s%.2g", k == 0 ? "" : k + 1 == left_over.size() ? " and " : ", ",
-                                 left_over[k]);
+  // The joints whose error the refit with their suggestions leaves above the noise, those
+  // with suggestions and those without apart: "joints 1 and 3 stay at 22 and 9.9 times the
+  // noise with their suggestions, joint 2 at 17 times it with none".
+  std::vector<int> with, without;
+  std::vector<double> with_ratio, without_ratio;
+  for (const JointFinding& f : d->joints) {
+    const double noise = options.noise_tolerance * f.noise_std_estimate;
+    const double left =
+        f.residual_rms_with_suggestions >= 0 ? f.residual_rms_with_suggestions : f.refit_rms;
+    const bool coverage = std::find(c.coverage_joints.begin(), c.coverage_joints.end(),
+                                    f.joint) != c.coverage_joints.end();
+    if (coverage || !(f.rms > noise && left > noise)) continue;
+    c.unexplained_joints.push_back(f.joint);
+    const bool suggested = std::any_of(d->suggestions.begin(), d->suggestions.end(),
+                                       [&f](const Suggestion& s) { return s.joint == f.joint; });
+    (suggested ? with : without).push_back(f.joint);
+    (suggested ? with_ratio : without_ratio)
+        .push_back(f.noise_std_estimate > 0 ? left / f.noise_std_estimate : HUGE_VAL);
+  }
+  const auto ratios = [](const std::vector<double>& r) {
+    std::string text;
+    for (size_t k = 0; k < r.size(); ++k) {
+      text += k == 0 ? "" : k + 1 == r.size() ? " and " : ", ";
+      text += !std::isfinite(r[k]) ? std::string("infinitely many")
+              : r[k] < 100          ? internal::Format("%.2g", r[k])
+                                    : internal::Format("%.0f", r[k]);
     }
-    unexplained = internal::JointsText(c.unexplained_joints) + " (" + ratios + " times the noise)";
+    return text;
+  };
+  std::string unexplained;
+  if (!with.empty()) {
+    unexplained += internal::JointsText(with) + (with.size() > 1 ? " stay at " : " stays at ") +
+                   ratios(with_ratio) + " times the noise with " +
+                   (with.size() > 1 ? "their" : "its") + " suggestions";
+  }
+  if (!without.empty()) {
+    unexplained += (unexplained.empty() ? "" : ", ") + internal::JointsText(without) +
+                   (without.size() > 1 ? " stay at " : " stays at ") + ratios(without_ratio) +
+                   " times the noise with none";
+  }
+  if (!unexplained.empty()) {
+    unexplained = "refitted on this log, " + unexplained +
+                  ": something neither the model nor the candidate effects express changes "
+                  "these torques (for instance a load that changes during the log, or a state "
+                  "the log does not record)";
   }
   const std::string coverage_text =
       c.coverage_joints.empty()
           ? ""
-          : "the model does not extrapolate to these motions on joint" +
-                std::string(c.coverage_joints.size() > 1 ? "s " : " ") + joints + " (" + worst +
+          : "the model does not extrapolate to these motions on " +
+                internal::JointsText(c.coverage_joints) + " (" + worst +
                 "): refitted on this log it reaches the noise, so the training data, not the "
                 "physics, are missing; retrain with motions like these";
+  const std::string but = unexplained.empty() ? std::string() : "; but " + unexplained;
   if (!d->suggestions.empty()) {
     c.verdict = Verdict::kMissingEffect;
     c.message = "effects are missing (see the suggestions)" +
-                (coverage_text.empty() ? std::string() : "; also " + coverage_text);
-    if (!unexplained.empty()) {
-      c.message += "; but refitted on this log with them the model still stays above the noise "
-                   "on " + unexplained + ": the suggestions explain part of the error, and the "
-                   "rest is something neither the model nor the candidate effects express (for "
-                   "instance a load that changes during the log, or a state the log does not "
-                   "record)";
-    }
+                (coverage_text.empty() ? std::string() : "; also " + coverage_text) + but;
   } else if (!c.coverage_joints.empty()) {
     c.verdict = Verdict::kCoverage;
-    c.message = coverage_text;
+    c.message = coverage_text + but;
   } else if (refit_short && !all_explained) {
     c.verdict = Verdict::kUnexplained;
-    c.message = "refitted on this log the model stays above the noise on " +
-                (unexplained.empty() ? std::string("some joint") : unexplained) +
-                ", and no candidate effect explains it";
+    c.message = unexplained.empty()
+                    ? "refitted on this log the model stays above the noise on some joint, and "
+                      "no candidate effect explains it"
+                    : "no candidate effect explains the error: " + unexplained;
   } else {
     c.verdict = Verdict::kExplained;
     c.message = "the model explains this log to the noise";
+    c.unexplained_joints.clear();
   }
 }
 
@@ -1538,6 +1573,8 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
         out.joints[static_cast<size_t>(j - 1)].refit_rms = joint.joints[static_cast<size_t>(j - 1)].refit_rms;
         out.joints[static_cast<size_t>(j - 1)].noise_std_estimate =
             joint.joints[static_cast<size_t>(j - 1)].noise_std_estimate;
+        out.joints[static_cast<size_t>(j - 1)].residual_rms_with_suggestions =
+            joint.joints[static_cast<size_t>(j - 1)].residual_rms_with_suggestions;
         out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
                                joint.suggestions.end());
         out.refused.insert(out.refused.end(), joint.refused.begin(), joint.refused.end());
@@ -1627,6 +1664,9 @@ std::string ToJson(const Diagnosis& d) {
     jf["nmse"] = f.nmse;
     jf["noise_std_estimate"] = f.noise_std_estimate;
     jf["refit_rms"] = f.refit_rms;
+    if (f.residual_rms_with_suggestions >= 0) {
+      jf["residual_rms_with_suggestions"] = f.residual_rms_with_suggestions;
+    }
     if (f.max_distance >= 0) {
       jf["outside_fraction"] = f.outside_fraction;
       jf["max_distance"] = f.max_distance;

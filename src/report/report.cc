@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "report/report_assets.h"
+#include "structgp/internal/text.h"
 
 namespace structgp {
 namespace report {
@@ -862,12 +863,8 @@ void AppendCoverage(const Diagnosis& d, const std::vector<Slot>& slots, int* nex
       "Above 1 (dashed line), the log is more than one training standard deviation from "
       "anything the model was trained on: there it extrapolates.</p>\n";
   if (!d.coverage.coverage_joints.empty()) {
-    std::string joints;
-    for (const int j : d.coverage.coverage_joints) {
-      joints += (joints.empty() ? "" : ", ") + std::to_string(j);
-    }
-    *html += "<p>Error from coverage on joint" +
-             std::string(d.coverage.coverage_joints.size() > 1 ? "s " : " ") + joints + ".</p>\n";
+    *html += "<p>Error from coverage on " + structgp::internal::JointsText(d.coverage.coverage_joints) +
+             ".</p>\n";
   }
   AppendPlotSlots(slots, next_plot, html);
   *html += "</section>\n";

@@ -166,6 +166,11 @@ struct JointFinding {
   /// Residual RMS of the model refitted on these data (its features and prior, no effect):
   /// near noise_std_estimate when the model class explains the log.
   double refit_rms = 0;
+  /// Residual RMS on the log of the diagnosis's own refit (the fit its candidates are scored
+  /// against: the noise level and output scales re-estimated on these data) with exactly this
+  /// joint's suggestions, or with none when it has none: what the suggestions leave of the
+  /// joint's error. -1 when the search did not run.
+  double residual_rms_with_suggestions = -1;
   /// With DiagnosisOptions::training_inputs: the fraction of the log's rows whose distance
   /// to the training states (below) exceeds 1, and the largest distance; -1 without.
   double outside_fraction = -1;
@@ -304,11 +309,13 @@ struct CoverageFinding {
   Verdict verdict = Verdict::kExplained;
   std::string message;             ///< one sentence for people
   std::vector<int> coverage_joints;  ///< 1-based joints whose error is coverage, not physics
-  /// 1-based joints that the model does not predict to the noise and that, refitted on this
-  /// log with the suggestions on that joint (without any when it has none), still stay above
+  /// 1-based joints, not coverage joints, that the model does not predict to the noise and
+  /// that, refitted on this log with their suggestions (JointFinding::
+  /// residual_rms_with_suggestions; refit_rms when the search did not run), still stay above
   /// noise_tolerance times the noise: error that neither the model class nor the candidate
-  /// effects explain (a load that changes during the log, a state its inputs do not hold).
-  /// With verdict kMissingEffect: the suggestions explain part of the error only.
+  /// effects explain (a load that changes during the log, a state the log does not record).
+  /// The message names them with every verdict but kExplained; with kUnexplained it may be
+  /// empty (the joint above the noise on the log and the one whose refit is short differ).
   std::vector<int> unexplained_joints;
   /// With DiagnosisOptions::training_inputs: distance of the log's rows to the nearest training
   /// state, per joint in the joint's standardised (q, qd, qdd) (1 = one training standard
