@@ -59,9 +59,10 @@
 // suggested joint: lagk is one GP of every joint, so a refit changes the other joints too). Then known effects
 // are added to the measured torques of the held-out part on one joint at a time (the --joints
 // joints with the widest range of q in that part), at a = size x the joint's noise level
-// sigma_j: the uninjected diagnosis's estimate from the successive differences of the
-// model's residual on that part (JointFinding::noise_std_estimate; --noise-from=differences:
-// sqrt(mean(diff(r_j)^2) / 2), which the signal's own jumps inflate, as before):
+// sigma_j: the uninjected diagnosis's estimate, from the successive differences of the
+// residual of the model refitted there (JointFinding::noise_std_estimate; the RMS of the
+// differences below when it has none); --noise-from=differences: sqrt(mean(diff(r_j)^2) / 2)
+// of the model's own residual on that part, which the signal's jumps inflate (as before):
 //   cogging  a sin(2 pi q_j / P + phase), P in --periods;  coulomb  a tanh(qd_j / 0.01);
 //   offset   a;                                            drift    a (t - t_begin) / T,
 // T the span of the part; the seed (--seeds) draws the sign of a and the cogging phase. Found:
@@ -885,12 +886,21 @@ RealResult RunReal(const Flags& f) {
     const Matrix* train_X = f.with_training ? &log.train.X : nullptr;
     const Diagnosis d0 =
         RunDiagnosis(*fit.model, X, Y, t, &base.seconds, train_X, &log.train.Y, &log.train.t);
-    if (f.noise_from == "diagnosis" && d0.joints.size() == static_cast<size_t>(N)) {
-      for (int j = 0; j < N; ++j) base.noise[j] = d0.joints[static_cast<size_t>(j)].noise_std_estimate;
+    if (f.noise_from == "diagnosis") {
+      bool estimated = d0.joints.size() == static_cast<size_t>(N);
+      for (int j = 0; estimated && j < N; ++j) {
+        estimated = d0.joints[static_cast<size_t>(j)].noise_std_estimate > 0;
+      }
+      if (estimated) {
+        for (int j = 0; j < N; ++j) base.noise[j] = d0.joints[static_cast<size_t>(j)].noise_std_estimate;
+      } else {
+        base.note += "noise from the RMS of the differences (the uninjected diagnosis gave no "
+                     "positive estimate on every joint); ";
+      }
     }
     WriteFindings(f, "real_" + log.name + "_uninjected", d0);
     base.diagnosed = d0.status == DiagnosisStatus::kOk;
-    if (!base.diagnosed) base.note = std::string(ToString(d0.status)) + ": " + d0.message;
+    if (!base.diagnosed) base.note += std::string(ToString(d0.status)) + ": " + d0.message;
     base.suggestions = SuggestionList(d0);
     base.other = OtherFindings(d0);
     std::set<std::string> baseline_keys;
