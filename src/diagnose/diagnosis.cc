@@ -1442,9 +1442,13 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
   };
   std::string unexplained;
   if (!with.empty()) {
+    const long own = std::count_if(d->suggestions.begin(), d->suggestions.end(),
+                                   [&with](const Suggestion& s) { return s.joint == with[0]; });
     unexplained += internal::JointsText(with) + (with.size() > 1 ? " stay at " : " stays at ") +
                    ratios(with_ratio) + " times the noise with " +
-                   (with.size() > 1 ? "their" : "its") + " suggestions";
+                   (with.size() > 1 ? "their suggestions"
+                    : own > 1        ? "its suggestions"
+                                     : "its suggestion");
   }
   if (!without.empty()) {
     unexplained += (unexplained.empty() ? "" : ", ") + internal::JointsText(without) +
