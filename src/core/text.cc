@@ -21,13 +21,19 @@ std::string Format(const char* format, ...) {
   return out;
 }
 
-std::string JointList(const std::vector<int>& joints) {
+std::string ListText(const std::vector<std::string>& items) {
   std::string text;
-  for (size_t k = 0; k < joints.size(); ++k) {
-    if (k > 0) text += k + 1 == joints.size() ? " and " : ", ";
-    text += std::to_string(joints[k]);
+  for (size_t k = 0; k < items.size(); ++k) {
+    if (k > 0) text += k + 1 == items.size() ? " and " : ", ";
+    text += items[k];
   }
   return text;
+}
+
+std::string JointList(const std::vector<int>& joints) {
+  std::vector<std::string> items;
+  for (int j : joints) items.push_back(std::to_string(j));
+  return ListText(items);
 }
 
 std::string JointsText(const std::vector<int>& joints) {

@@ -1325,20 +1325,24 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     }
   }
   // What each joint's final suggestions leave of its error on the log (the model's columns and
-  // exactly those suggestions' columns, in the fit the candidates were scored in).
+  // exactly those suggestions' columns, in the fit the candidates were scored in). The joint's
+  // base is that fit unless the joint selection replaced its greedy choice.
   for (int j = 0; j < N; ++j) {
     if (only_joint > 0 && j + 1 != only_joint) continue;
-    Index cols(static_cast<size_t>(base_map->dim()));
-    std::iota(cols.begin(), cols.end(), 0);
+    Index cols = B;
     for (const auto& [ci, s] : picks) {
       if (s.joint != j + 1) continue;
       const Index& c = candidates[static_cast<size_t>(ci)].cols;
       cols.insert(cols.end(), c.begin(), c.end());
     }
-    BaseFits fit;
-    if (!fit_all(cols, &fit)) continue;
+    const BaseFits* fit = joint_base[static_cast<size_t>(j)].get();
+    BaseFits refit;
+    if (fit->cols != cols) {
+      if (!fit_all(cols, &refit)) continue;
+      fit = &refit;
+    }
     out.joints[static_cast<size_t>(j)].residual_rms_with_suggestions =
-        std::sqrt(fit.residual.col(j).tail(m_log).squaredNorm() / m_log);
+        std::sqrt(fit->residual.col(j).tail(m_log).squaredNorm() / m_log);
   }
   for (auto& [ci, s] : picks) out.suggestions.push_back(std::move(s));
   for (auto& [key, r] : refused) out.refused.push_back(std::move(r));
@@ -1413,9 +1417,11 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
   }
   // The joints whose error the refit with their suggestions leaves above the noise, those
   // with suggestions and those without apart: "joints 1 and 3 stay at 22 and 9.9 times the
-  // noise with their suggestions, joint 2 at 17 times it with none".
+  // noise with their suggestions, joint 2 stays at 17 times the noise with none".
+  std::map<int, int> suggestions_of;  // joint -> how many
+  for (const Suggestion& s : d->suggestions) ++suggestions_of[s.joint];
   std::vector<int> with, without;
-  std::vector<double> with_ratio, without_ratio;
+  std::vector<std::string> with_ratio, without_ratio;
   for (const JointFinding& f : d->joints) {
     const double noise = options.noise_tolerance * f.noise_std_estimate;
     const double left =
@@ -1424,36 +1430,29 @@ void Conclude(const DiagnosisOptions& options, Diagnosis* d) {
                                     f.joint) != c.coverage_joints.end();
     if (coverage || !(f.rms > noise && left > noise)) continue;
     c.unexplained_joints.push_back(f.joint);
-    const bool suggested = std::any_of(d->suggestions.begin(), d->suggestions.end(),
-                                       [&f](const Suggestion& s) { return s.joint == f.joint; });
+    const double ratio = f.noise_std_estimate > 0 ? left / f.noise_std_estimate : HUGE_VAL;
+    const bool suggested = suggestions_of.count(f.joint) > 0;
     (suggested ? with : without).push_back(f.joint);
     (suggested ? with_ratio : without_ratio)
-        .push_back(f.noise_std_estimate > 0 ? left / f.noise_std_estimate : HUGE_VAL);
+        .push_back(!std::isfinite(ratio) ? std::string("infinitely many")
+                   : ratio < 100         ? internal::Format("%.2g", ratio)
+                                         : internal::Format("%.0f", ratio));
   }
-  const auto ratios = [](const std::vector<double>& r) {
-    std::string text;
-    for (size_t k = 0; k < r.size(); ++k) {
-      text += k == 0 ? "" : k + 1 == r.size() ? " and " : ", ";
-      text += !std::isfinite(r[k]) ? std::string("infinitely many")
-              : r[k] < 100          ? internal::Format("%.2g", r[k])
-                                    : internal::Format("%.0f", r[k]);
-    }
-    return text;
+  // "joints 1 and 3 stay at 22 and 9.9 times the noise with <how>".
+  const auto stay = [](const std::vector<int>& joints, const std::vector<std::string>& ratios,
+                       const std::string& how) {
+    return internal::JointsText(joints) + (joints.size() > 1 ? " stay at " : " stays at ") +
+           internal::ListText(ratios) + " times the noise with " + how;
   };
   std::string unexplained;
   if (!with.empty()) {
-    const long own = std::count_if(d->suggestions.begin(), d->suggestions.end(),
-                                   [&with](const Suggestion& s) { return s.joint == with[0]; });
-    unexplained += internal::JointsText(with) + (with.size() > 1 ? " stay at " : " stays at ") +
-                   ratios(with_ratio) + " times the noise with " +
-                   (with.size() > 1 ? "their suggestions"
-                    : own > 1        ? "its suggestions"
-                                     : "its suggestion");
+    unexplained = stay(with, with_ratio,
+                       with.size() > 1                  ? "their suggestions"
+                       : suggestions_of.at(with[0]) > 1 ? "its suggestions"
+                                                        : "its suggestion");
   }
   if (!without.empty()) {
-    unexplained += (unexplained.empty() ? "" : ", ") + internal::JointsText(without) +
-                   (without.size() > 1 ? " stay at " : " stays at ") + ratios(without_ratio) +
-                   " times the noise with none";
+    unexplained += (unexplained.empty() ? "" : ", ") + stay(without, without_ratio, "none");
   }
   if (!unexplained.empty()) {
     unexplained = "refitted on this log, " + unexplained +

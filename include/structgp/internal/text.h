@@ -13,6 +13,9 @@ namespace internal {
 /// printf-style formatting into a string.
 std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
 
+/// "a", "a and b", "a, b and c".
+std::string ListText(const std::vector<std::string>& items);
+
 /// "1", "1 and 3", "1, 2 and 3": joints (1-based) as a person reads them.
 std::string JointList(const std::vector<int>& joints);
 
