@@ -34,24 +34,53 @@ fi
 cmake --build "$build" -j "$jobs" --target "${targets[@]}"
 
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
-for target in "${targets[@]}"; do
-  corpus="$build/corpus/$target"
-  artifacts="$build/artifacts/$target/"
+# Each target is one process on one core: up to $jobs run at once (each writes its own log and
+# corpus); the results are read in the targets' order once all have run.
+run_target() {
+  local target=$1
+  local corpus="$build/corpus/$target"
+  local artifacts="$build/artifacts/$target/"
   mkdir -p "$corpus" "$artifacts"
+  local budget
   if [ -n "${STRUCTGP_FUZZ_RUNS:-}" ]; then
     budget=(-runs="$STRUCTGP_FUZZ_RUNS" -seed=1)
-    echo "run-fuzzers: $target, $STRUCTGP_FUZZ_RUNS inputs from seed 1"
   else
     budget=(-max_total_time="$seconds")
-    echo "run-fuzzers: $target for ${seconds} s"
   fi
+  local status=0
   "$build/fuzz/$target" "${budget[@]}" -timeout=10 -rss_limit_mb=2048 \
     -max_len=65536 -print_final_stats=1 -artifact_prefix="$artifacts" \
-    "$corpus" "fuzz/corpus/$target" 2> "$build/$target.log" || {
-      tail -n 60 "$build/$target.log"
-      echo "run-fuzzers: $target FAILED; the input is in $artifacts" >&2
-      exit 1
-    }
-  grep -E "^stat::number_of_executed_units|^#[0-9]+.*DONE" "$build/$target.log" | tail -n 2 || true
+    "$corpus" "fuzz/corpus/$target" 2> "$build/$target.log" || status=$?
+  echo "$status" > "$build/$target.status"
+}
+
+for target in "${targets[@]}"; do
+  if [ -n "${STRUCTGP_FUZZ_RUNS:-}" ]; then
+    echo "run-fuzzers: $target, $STRUCTGP_FUZZ_RUNS inputs from seed 1"
+  else
+    echo "run-fuzzers: $target for ${seconds} s"
+  fi
+  rm -f "$build/$target.status"
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do
+    wait -n || true
+  done
+  run_target "$target" &
 done
+wait
+
+failed=0
+for target in "${targets[@]}"; do
+  status=$(cat "$build/$target.status" 2>/dev/null || echo 1)
+  if [ "$status" != 0 ]; then
+    tail -n 60 "$build/$target.log"
+    echo "run-fuzzers: $target FAILED (status $status); the input is in $build/artifacts/$target/" >&2
+    failed=1
+  else
+    echo "run-fuzzers: $target:"
+    grep -E "^stat::number_of_executed_units|^#[0-9]+.*DONE" "$build/$target.log" | tail -n 2 || true
+  fi
+done
+if [ "$failed" != 0 ]; then
+  exit 1
+fi
 echo "run-fuzzers: all targets ran without a finding"

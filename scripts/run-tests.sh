@@ -45,8 +45,9 @@ fi
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # ASan + UBSan with clang at -O1 (half the compile time of -O3 per file), in one tree with
-  # the libFuzzer targets (STRUCTGP_BUILD_FUZZERS: the library carries libFuzzer's coverage
-  # instrumentation, which the tests do not use), so that one instrumented library serves both
+  # the libFuzzer targets (STRUCTGP_BUILD_FUZZERS: the library and the fuzz targets carry
+  # libFuzzer's coverage instrumentation; the tests, the CLI and the simulator, which feed no
+  # fuzzer, do not), so that one instrumented library serves both
   # passes: every test of the suite but the long ones listed in tests/release_only.txt, which
   # repeat at larger sizes or end to end code paths that the tests named next to them run under
   # the sanitizers (docs/reliability.md, section 5). Benchmark programs are not tests, and the
@@ -62,6 +63,15 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   cmake --build "$asan" -j "$jobs"
   release_only=$(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' -e 's/^/^/' -e 's/$/$/' \
                    tests/release_only.txt | paste -s -d '|')
+  # Every line names a test of the Release pass (a test renamed or removed would otherwise
+  # leave a line that keeps nothing out, and its long replacement would run under ASan).
+  while IFS= read -r pattern; do
+    if ! ctest --test-dir "$build" -N -R "$pattern" | grep -q '^Total Tests: [1-9]'; then
+      echo "run-tests: tests/release_only.txt: '$pattern' names no test of the Release pass" >&2
+      exit 1
+    fi
+  done < <(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' -e 's/^/^/' -e 's/$/$/' \
+             tests/release_only.txt)
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
     ctest --test-dir "$asan" --output-on-failure -j "$jobs" -E "$release_only"
