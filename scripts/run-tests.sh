@@ -11,14 +11,32 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# The wall time of each step, printed at the end (also when a step fails), so that a CI log
+# says where its time went (docs/reliability.md, section 5, keeps the measurements).
+step_start=$SECONDS
+steps=()
+step_done() {
+  steps+=("$(printf '%-28s %5d s' "$1" $((SECONDS - step_start)))")
+  step_start=$SECONDS
+}
+print_steps() {
+  echo "run-tests: wall time per step"
+  for s in "${steps[@]}"; do echo "  $s"; done
+  echo "  $(printf '%-28s %5d s' total "$SECONDS")"
+}
+trap print_steps EXIT
+
 bash scripts/install-deps.sh
+step_done dependencies
 
 jobs=$(nproc 2>/dev/null || echo 2)
 build=${STRUCTGP_BUILD_DIR:-build}
 
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build" -j "$jobs"
+step_done "Release build"
 ctest --test-dir "$build" --output-on-failure -j "$jobs"
+step_done "Release ctest"
 
 # The installed package works for a consumer: find_package(structgp) -> structgp::structgp,
 # and a program of under 30 lines fits, diagnoses and saves a model with it.
@@ -42,6 +60,7 @@ if [ -n "$module" ]; then
   PYTHONPATH="$(dirname "$module")" /usr/bin/python3 -c \
     'import structgp; print("installed Python module structgp", structgp.__version__)'
 fi
+step_done "installed package, consumer"
 
 if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # ASan + UBSan with clang at -O1 (half the compile time of -O3 per file), in one tree with
@@ -61,6 +80,7 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
         -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DSTRUCTGP_BUILD_FUZZERS=ON \
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF
   cmake --build "$asan" -j "$jobs"
+  step_done "ASan + UBSan build"
   release_only=$(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' -e 's/^/^/' -e 's/$/$/' \
                    tests/release_only.txt | paste -s -d '|')
   # Every line names a test of the Release pass (a test renamed or removed would otherwise
@@ -75,6 +95,7 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
     ctest --test-dir "$asan" --output-on-failure -j "$jobs" -E "$release_only"
+  step_done "ASan + UBSan ctest"
 
   # TSan: the tests that run threads (online learner next to a control loop, multi-threaded
   # batch statistics, Nystrom features built on several threads, the lagk posterior's DTC on
@@ -85,12 +106,14 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF -DSTRUCTGP_BUILD_EXAMPLES=OFF
   cmake --build "$tsan" -j "$jobs" --target test_online test_nystrom test_batch_fit test_concurrent_predict \
         test_euler_lagrange_gp test_cholesky test_per_joint
+  step_done "TSan build"
   threaded='^test_(online|nystrom|batch_fit|concurrent_predict)\.'
   threaded+='|^test_euler_lagrange_gp\.EulerLagrangeGP\.(DtcOverBlocksAndWorkers|EvidenceOnThreads)'
   threaded+='|^test_cholesky\.(Cholesky\.ThreadsGiveTheOneThread|Workers\.)'
   threaded+='|^test_per_joint\.PerJointFit\.JointsOnThreads'
   TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1} \
     ctest --test-dir "$tsan" --output-on-failure -j "$jobs" -R "$threaded"
+  step_done "TSan ctest"
 
   # libFuzzer, each target from its seed corpus, built in the ASan tree above: a fixed number
   # of inputs from a fixed seed, so that the result is reproducible (new bugs are hunted with
@@ -98,5 +121,6 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   STRUCTGP_FUZZ_BUILD_DIR="$asan" \
   STRUCTGP_FUZZ_RUNS=${STRUCTGP_FUZZ_RUNS:-100000} \
     bash scripts/run-fuzzers.sh
+  step_done "fuzzing"
 fi
 echo "run-tests: all tests passed"
