@@ -34,6 +34,14 @@ fi
 cmake --build "$build" -j "$jobs" --target "${targets[@]}"
 
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+# The same budget for every target: a fixed number of inputs from a fixed seed, or a time.
+if [ -n "${STRUCTGP_FUZZ_RUNS:-}" ]; then
+  budget=(-runs="$STRUCTGP_FUZZ_RUNS" -seed=1)
+  budget_text="$STRUCTGP_FUZZ_RUNS inputs from seed 1"
+else
+  budget=(-max_total_time="$seconds")
+  budget_text="for ${seconds} s"
+fi
 # Each target is one process on one core: up to $jobs run at once (each writes its own log and
 # corpus); the results are read in the targets' order once all have run.
 run_target() {
@@ -41,12 +49,6 @@ run_target() {
   local corpus="$build/corpus/$target"
   local artifacts="$build/artifacts/$target/"
   mkdir -p "$corpus" "$artifacts"
-  local budget
-  if [ -n "${STRUCTGP_FUZZ_RUNS:-}" ]; then
-    budget=(-runs="$STRUCTGP_FUZZ_RUNS" -seed=1)
-  else
-    budget=(-max_total_time="$seconds")
-  fi
   local status=0
   "$build/fuzz/$target" "${budget[@]}" -timeout=10 -rss_limit_mb=2048 \
     -max_len=65536 -print_final_stats=1 -artifact_prefix="$artifacts" \
@@ -55,11 +57,7 @@ run_target() {
 }
 
 for target in "${targets[@]}"; do
-  if [ -n "${STRUCTGP_FUZZ_RUNS:-}" ]; then
-    echo "run-fuzzers: $target, $STRUCTGP_FUZZ_RUNS inputs from seed 1"
-  else
-    echo "run-fuzzers: $target for ${seconds} s"
-  fi
+  echo "run-fuzzers: $target, $budget_text"
   rm -f "$build/$target.status"
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do
     wait -n || true

@@ -81,17 +81,18 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF
   cmake --build "$asan" -j "$jobs"
   step_done "ASan + UBSan build"
-  release_only=$(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' -e 's/^/^/' -e 's/$/$/' \
-                   tests/release_only.txt | paste -s -d '|')
-  # Every line names a test of the Release pass (a test renamed or removed would otherwise
-  # leave a line that keeps nothing out, and its long replacement would run under ASan).
-  while IFS= read -r pattern; do
+  # One anchored pattern per line of tests/release_only.txt. Every line names a test of the
+  # Release pass (a test renamed or removed would otherwise leave a line that keeps nothing
+  # out, and its long replacement would run under ASan).
+  mapfile -t release_only_patterns < <(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' \
+                                         -e 's/^/^/' -e 's/$/$/' tests/release_only.txt)
+  for pattern in "${release_only_patterns[@]}"; do
     if ! ctest --test-dir "$build" -N -R "$pattern" | grep -q '^Total Tests: [1-9]'; then
       echo "run-tests: tests/release_only.txt: '$pattern' names no test of the Release pass" >&2
       exit 1
     fi
-  done < <(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' -e 's/^/^/' -e 's/$/$/' \
-             tests/release_only.txt)
+  done
+  release_only=$(IFS='|'; echo "${release_only_patterns[*]}")
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
   UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
     ctest --test-dir "$asan" --output-on-failure -j "$jobs" -E "$release_only"
