@@ -3,8 +3,9 @@
 # runs the whole test suite (with the Python module's pytest files), then installs the package
 # into a scratch prefix, builds the downstream consumer in examples/consumer against it and
 # imports the installed Python module. Then the reliability passes
-# (docs/reliability.md): the whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer
-# (build-asan, clang), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer
+# (docs/reliability.md): the suite again under AddressSanitizer + UndefinedBehaviorSanitizer
+# (build-asan, clang; the tests that run all the code the suite runs, tests/release_only.txt and
+# tests/sanitizer_redundant.txt name the others), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer
 # target, built in the same instrumented tree as the ASan suite, on 100,000 inputs from a fixed
 # seed (scripts/run-fuzzers.sh).
 # STRUCTGP_SKIP_SANITIZERS=1 skips these passes (for a quick local run; CI runs them).
@@ -66,10 +67,8 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # ASan + UBSan with clang at -O1 (half the compile time of -O3 per file), in one tree with
   # the libFuzzer targets (STRUCTGP_BUILD_FUZZERS: the library and the fuzz targets carry
   # libFuzzer's coverage instrumentation; the tests, the CLI and the simulator, which feed no
-  # fuzzer, do not), so that one instrumented library serves both
-  # passes: every test of the suite but the long ones listed in tests/release_only.txt, which
-  # repeat at larger sizes or end to end code paths that the tests named next to them run under
-  # the sanitizers (docs/reliability.md, section 5). Benchmark programs are not tests, and the
+  # fuzzer, do not), so that one instrumented library serves both passes: every test of the
+  # suite but those of the two lists below (docs/reliability.md, section 5). Benchmark programs are not tests, and the
   # experiments' quick checks are too slow under ASan: both left out.
   asan=${STRUCTGP_ASAN_BUILD_DIR:-build-asan}
   # A tree configured with another compiler (GCC, before) is configured again from scratch.
@@ -81,16 +80,23 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
         -DSTRUCTGP_BUILD_BENCHMARKS=OFF -DSTRUCTGP_BUILD_EXPERIMENTS=OFF
   cmake --build "$asan" -j "$jobs"
   step_done "ASan + UBSan build"
-  # One anchored pattern per line of tests/release_only.txt. Every line names a test of the
-  # Release pass (a test renamed or removed would otherwise leave a line that keeps nothing
-  # out, and its long replacement would run under ASan).
-  mapfile -t release_only_patterns < <(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' \
-                                         -e 's/^/^/' -e 's/$/$/' tests/release_only.txt)
-  for pattern in "${release_only_patterns[@]}"; do
-    if ! ctest --test-dir "$build" -N -R "$pattern" | grep -q '^Total Tests: [1-9]'; then
-      echo "run-tests: tests/release_only.txt: '$pattern' names no test of the Release pass" >&2
-      exit 1
-    fi
+  # One anchored pattern per line of tests/release_only.txt (long tests whose code the tests
+  # named next to them run here) and of tests/sanitizer_redundant.txt (tests whose every line and
+  # branch outcome other tests of this pass run: scripts/coverage-per-test.py wrote it). Every
+  # line names a test of the Release pass (a test renamed or removed would otherwise leave a
+  # line that keeps nothing out, and its replacement would run here unmeasured).
+  release_tests=$(ctest --test-dir "$build" -N | sed -n 's/^ *Test *#[0-9]*: //p')
+  release_only_patterns=()
+  for list in tests/release_only.txt tests/sanitizer_redundant.txt; do
+    mapfile -t patterns < <(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' \
+                              -e 's/^/^/' -e 's/$/$/' "$list")
+    for pattern in "${patterns[@]}"; do
+      if ! grep -qE -- "$pattern" <<< "$release_tests"; then
+        echo "run-tests: $list: '$pattern' names no test of the Release pass" >&2
+        exit 1
+      fi
+    done
+    release_only_patterns+=("${patterns[@]}")
   done
   release_only=$(IFS='|'; echo "${release_only_patterns[*]}")
   ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1} \
