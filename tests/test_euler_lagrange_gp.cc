@@ -177,11 +177,16 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
 
 // DTC over blocks of training states and several workers: against the dense formulas (mean
 // K_*Z (K_ZZ + K_ZX S^-1 K_XZ)^-1 K_ZX S^-1 y, evidence log N(y; 0, K_XZ K_ZZ^-1 K_ZX + S)),
-// with a last block shorter than the others, and bit for bit the same for 1 to 7 workers.
+// with a last block shorter than the others, a system of two panels, the second shorter, and
+// bit for bit the same for 1 to 7 workers.
 TEST(EulerLagrangeGP, DtcOverBlocksAndWorkersEqualsTheDenseFormulas) {
+  // Four joints: a space of more functions than the p N = 320 inducing torques, so that every
+  // panel of the system carries information (at two joints the inducing torques beyond the
+  // space's few dozen functions leave rows of V near zero).
   std::mt19937 rng(8);
-  const int n = 2;
-  const int m = 3 * static_cast<int>(EulerLagrangeGP::kDtcBlockStates) + 17, p = 30;
+  const int n = 4;
+  const int m = 3 * static_cast<int>(EulerLagrangeGP::kDtcBlockStates) + 17;
+  const int p = static_cast<int>(EulerLagrangeGP::kDtcPanelRows) / n + 16;
   const EulerLagrangeGPHyperparameters h = RandomHyper(n, false, &rng);
   const Matrix X = RandomStates(m, n, &rng);
   const Matrix Z = X.topRows(p);

@@ -1,6 +1,7 @@
 #include "structgp/model/euler_lagrange_gp.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -366,41 +367,55 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     return Status::kNotPositiveDefinite;
   }
   // V = L^-1 K_ZX S^-1/2 block by block of training states: B = I + sum_b V_b V_b^T and
-  // vy = sum_b V_b S_b^-1/2 y_b. The workers take the blocks a group at a time, each block's
-  // terms into its worker's scratch, and the calling thread adds them in block order: the
-  // same sums in the same order for any number of workers.
+  // vy = sum_b V_b S_b^-1/2 y_b. The workers take the blocks a group at a time: each forms,
+  // scales and solves one block's columns, then they share B's lower triangle and vy in panels
+  // of kDtcPanelRows rows, each panel adding the group's blocks in block order. Every block
+  // and panel has a fixed size and is one worker's, so the sums are the same in the same order
+  // for any number of workers, and no worker needs a (p N)^2 scratch of its own.
   Vector ys = Stack(Y);
   for (Eigen::Index r = 0; r < ys.size(); ++r) ys[r] /= noise[r % n];
   const Eigen::Index pn = Kzz.rows();
   Kzz = Matrix();  // the factor holds it now
   const Eigen::Index blocks = (X.rows() + kDtcBlockStates - 1) / kDtcBlockStates;
+  const Eigen::Index panels = (pn + kDtcPanelRows - 1) / kDtcPanelRows;
   const int workers =
       static_cast<int>(std::max<Eigen::Index>(1, std::min<Eigen::Index>(num_threads, blocks)));
-  std::vector<Matrix> B_block(static_cast<size_t>(workers), Matrix(pn, pn));
-  std::vector<Vector> vy_block(static_cast<size_t>(workers), Vector(pn));
+  std::vector<Matrix> V(static_cast<size_t>(workers));  // one block's columns per worker
   const auto& L = llt.matrixL();
   Matrix B = Matrix::Zero(pn, pn);
   Vector vy = Vector::Zero(pn);
   for (Eigen::Index group = 0; group < blocks; group += workers) {
     const int in_group = static_cast<int>(std::min<Eigen::Index>(workers, blocks - group));
+    auto first_state = [&](int w) { return (group + w) * kDtcBlockStates; };
+    auto block_states = [&](int w) {
+      return std::min(kDtcBlockStates, X.rows() - first_state(w));
+    };
     internal::RunWorkers(in_group, [&](int w) {
-      const Eigen::Index first = (group + w) * kDtcBlockStates;
-      const Eigen::Index count = std::min(kDtcBlockStates, X.rows() - first);
-      Matrix V = Covariance(kernel_, hyper_, effects_.get(), inducing, X.middleRows(first, count),
-                            false);  // (p N) x (count N)
-      for (Eigen::Index r = 0; r < V.cols(); ++r) V.col(r) /= noise[r % n];
-      L.solveInPlace(V);
-      Matrix& Bw = B_block[static_cast<size_t>(w)];
-      Bw.triangularView<Eigen::Lower>().setZero();
-      Bw.selfadjointView<Eigen::Lower>().rankUpdate(V);
-      vy_block[static_cast<size_t>(w)].noalias() = V * ys.segment(first * n, count * n);
+      Matrix& Vw = V[static_cast<size_t>(w)];
+      Vw = Covariance(kernel_, hyper_, effects_.get(), inducing,
+                      X.middleRows(first_state(w), block_states(w)), false);  // (p N) x (count N)
+      for (Eigen::Index r = 0; r < Vw.cols(); ++r) Vw.col(r) /= noise[r % n];
+      L.solveInPlace(Vw);
     });
-    for (int w = 0; w < in_group; ++w) {
-      B.triangularView<Eigen::Lower>() += B_block[static_cast<size_t>(w)];
-      vy += vy_block[static_cast<size_t>(w)];
-    }
+    // The panels from the last (the widest rows of B's lower triangle) to the first, each to
+    // the next free worker.
+    std::atomic<Eigen::Index> next_panel{0};
+    internal::RunWorkers(static_cast<int>(std::min<Eigen::Index>(workers, panels)), [&](int) {
+      for (Eigen::Index k = next_panel++; k < panels; k = next_panel++) {
+        const Eigen::Index r0 = (panels - 1 - k) * kDtcPanelRows;
+        const Eigen::Index rows = std::min(kDtcPanelRows, pn - r0);
+        for (int w = 0; w < in_group; ++w) {
+          const Matrix& Vw = V[static_cast<size_t>(w)];
+          const auto Vr = Vw.middleRows(r0, rows);
+          if (r0 > 0) B.block(r0, 0, rows, r0).noalias() += Vr * Vw.topRows(r0).transpose();
+          B.block(r0, r0, rows, rows).selfadjointView<Eigen::Lower>().rankUpdate(Vr);
+          vy.segment(r0, rows).noalias() +=
+              Vr * ys.segment(first_state(w) * n, block_states(w) * n);
+        }
+      }
+    });
   }
-  B_block.clear();
+  V.clear();
   B.diagonal().array() += 1.0;
   internal::Cholesky llt_b;
   if (!IsOk(llt_b.Factorize(B, {internal::JitterLadder::kNone}).status)) {

@@ -133,14 +133,17 @@ class EulerLagrangeGP {
   ///
   /// DTC takes the training states in blocks of kDtcBlockStates: each block's covariance with
   /// the inducing states is formed, solved against their factor and its terms added to the
-  /// (p N) x (p N) system in block order, so memory is (num_threads + 1) (p N)^2 doubles plus
-  /// one block's columns per worker, not the (p N) x (m N) of the whole cross-covariance. The
-  /// workers (num_threads, at most the number of blocks) take the blocks a group at a time;
-  /// the result is the same bit for bit for any number of them.
+  /// (p N) x (p N) system in block order, so memory is two (p N)^2 factors plus one block's
+  /// columns, (p N) x (kDtcBlockStates N), per worker, not the (p N) x (m N) of the whole
+  /// cross-covariance. The workers (num_threads, at most the number of blocks) take the blocks
+  /// a group at a time, then share the system's rows in panels of kDtcPanelRows; the result is
+  /// the same bit for bit for any number of them.
   Status Condition(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const ConstMatrixRef& inducing = Matrix(), int num_threads = 1);
   /// Training states per block of the DTC's accumulation (see Condition).
   static constexpr Eigen::Index kDtcBlockStates = 128;
+  /// Rows per panel of the system, the unit in which the workers add to it (see Condition).
+  static constexpr Eigen::Index kDtcPanelRows = 128;
 
   /// How the inducing states are chosen among the training states.
   enum class InducingRule {

@@ -67,8 +67,8 @@ struct BatchFitOptions {
   /// Euler-Lagrange form: with more rows than this, the posterior conditions on every row
   /// through this many inducing states chosen to cover the training states (the deterministic
   /// training conditional, FarthestStateRows in core/row_subset.h): O(m N (p N)^2) time and
-  /// O((p N)^2) memory per worker (num_threads). Up to it the posterior is exact,
-  /// O((m N)^3). 0: always exact.
+  /// O((p N)^2) memory, plus (p N) x (128 N) per worker (num_threads). Up to it the posterior
+  /// is exact, O((m N)^3). 0: always exact.
   int inducing_states = 800;
 };
 
