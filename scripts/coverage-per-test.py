@@ -261,11 +261,16 @@ def main():
     summary = (f"{len(universe)} lines and branch outcomes of src/, include/ and examples/ run by "
                f"{len(names)} tests ({total:.0f} s of sanitizer time); {len(kept)} tests run all "
                f"of them ({kept_cost:.0f} s); the {len(left)} others: {total - kept_cost:.0f} s")
+    if args.keep:
+        summary += f" (kept as well: the tests matching {', '.join(args.keep)})"
     print(summary)
     lines = []
     for n in sorted(left, key=lambda n: -cost[n]):
-        best = max(kept, key=lambda k: len(items[n] & items[k]))
-        lines.append(f"{test_pattern(n)}   # {cost[n]:.1f} s; {test_pattern(best)}")
+        if items[n]:
+            best = test_pattern(max(kept, key=lambda k: len(items[n] & items[k])))
+        else:
+            best = "runs no line of src/, include/ or examples/"
+        lines.append(f"{test_pattern(n)}   # {cost[n]:.1f} s; {best}")
     if args.write:
         with open(args.write, "w") as f:
             f.write(HEADER.format(summary=summary))
