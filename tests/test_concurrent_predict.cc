@@ -1,6 +1,7 @@
 // Model apart from workspace: one const model (WeightSpaceGP, KernelGP, RobotModel in weight
 // and function space) serves several threads at once, each with its own workspace, and every
-// thread gets bit for bit the predictions of a single-threaded pass. Run under ThreadSanitizer
+// thread gets bit for bit the predictions of a single-threaded pass; RobotModel::PredictRows
+// shares a log's rows among threads with the same result. Run under ThreadSanitizer
 // by scripts/run-tests.sh: a data race in a const path fails there even when the numbers agree.
 
 #include <gtest/gtest.h>
@@ -8,7 +9,10 @@
 #include <cstring>
 #include <functional>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "structgp/kernel/rbf_kernel.h"
@@ -150,6 +154,37 @@ TEST(ConcurrentPredict, RobotModelInFunctionSpace) {
 TEST(ConcurrentPredict, RobotModelWithAFeatureKernel) {
   ExpectRobotModelConcurrent("rbf+fri", Form::kAuto);
   ExpectRobotModelConcurrent("pol", Form::kFunctionSpace);
+}
+
+// RobotModel::PredictRows on several threads (contiguous ranges of rows, a workspace each):
+// bit for bit the one-thread result, with fewer rows than threads too, for a weight-space, a
+// function-space and an Euler-Lagrange model.
+TEST(ConcurrentPredict, PredictRowsOnThreadsEqualsOneThread) {
+  for (const auto& [spec_text, form] : std::vector<std::pair<std::string, Form>>{
+           {"pol", Form::kWeightSpace}, {"rbf+fri", Form::kAuto}, {"lagk+fri", Form::kAuto}}) {
+    SCOPED_TRACE(spec_text);
+    std::mt19937_64 rng(kSeed + 3);
+    const int N = 2, m = 200;
+    RobotModelOptions options;
+    options.form = form;
+    RobotModel model(ParseModelSpec(spec_text), N, options);
+    const Matrix X = Random(m, 3 * N, &rng);
+    const Matrix Y = Random(m, N, &rng, 2.0);
+    ASSERT_EQ(model.Fit(X, Y), Status::kOk);
+    const Matrix queries = Random(41, 3 * N, &rng);
+    Matrix mean_one, std_one;
+    model.PredictRows(queries, &mean_one, &std_one);
+    ASSERT_TRUE(mean_one.allFinite() && std_one.allFinite());
+    for (int threads : {2, 3, kThreads}) {
+      Matrix mean, std;
+      model.PredictRows(queries, &mean, &std, threads);
+      EXPECT_TRUE(BitEqual(mean, mean_one) && BitEqual(std, std_one)) << threads << " threads";
+    }
+    Matrix mean_few, mean_only;
+    model.PredictRows(queries.topRows(3), &mean_few, nullptr, 8);
+    EXPECT_TRUE(BitEqual(mean_few, mean_one.topRows(3)));
+    EXPECT_THROW(model.PredictRows(queries, &mean_only, nullptr, 0), std::invalid_argument);
+  }
 }
 
 }  // namespace

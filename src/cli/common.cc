@@ -82,8 +82,8 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
 
 void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options) {
   command->add_option("--threads", options->num_threads,
-                      "Threads refactorising a lagk model through its inducing states on load "
-                      "(the same result for any number; each needs (p N)^2 doubles)")
+                      "Threads that refactorise a lagk model through its inducing states on load "
+                      "and predict the log's rows (the same result for any number)")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
 }
@@ -172,10 +172,10 @@ std::string FitJson(const RobotModel& model, const RobotData& data, const FitSum
   return doc.dump(2) + "\n";
 }
 
-Predictions Predict(const RobotModel& model, const RobotData& data) {
+Predictions Predict(const RobotModel& model, const RobotData& data, int num_threads) {
   Predictions p;
   try {
-    model.PredictRows(ModelInputs(model, data), &p.mean, &p.std);
+    model.PredictRows(ModelInputs(model, data), &p.mean, &p.std, num_threads);
   } catch (const std::runtime_error& e) {
     if (dynamic_cast<const DataError*>(&e) != nullptr) throw;
     throw NumericalError(std::string("prediction failed: ") + e.what());

@@ -119,7 +119,8 @@ struct Predictions {
   Matrix mean;
   Matrix std;
 };
-Predictions Predict(const RobotModel& model, const RobotData& data);
+/// num_threads: RobotModel::PredictRows's (the same result for any number).
+Predictions Predict(const RobotModel& model, const RobotData& data, int num_threads = 1);
 
 /// The errors of one model for a report.
 report::ModelErrors ReportErrors(const std::string& label, const Errors& errors,

@@ -69,7 +69,7 @@ class CompareCommand : public Command {
         if (other == label) label += " (" + models_[k] + ")";
       }
       labels.push_back(label);
-      predictions.emplace_back(label, Predict(models[k], data));
+      predictions.emplace_back(label, Predict(models[k], data, load_.num_threads));
       const Predictions& p = predictions.back().second;
       errors.push_back(ComputeErrors(p.mean, data.Y));
       coverage.push_back(

@@ -43,7 +43,7 @@ class EvaluateCommand : public Command {
     std::FILE* const text_out = TextStream({{"--json", json_}});
     const RobotModel model = LoadModel(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
-    const Predictions p = Predict(model, data);
+    const Predictions p = Predict(model, data, load_.num_threads);
     const Errors e = ComputeErrors(p.mean, data.Y);
     const Vector coverage =
         BandCoverage(p.mean, p.std, model.hyperparameters().noise_stds(), data.Y);

@@ -49,7 +49,7 @@ class PredictCommand : public Command {
                        " form");
     }
     const RobotData data = ReadData(data_, model.num_joints());
-    const Predictions p = Predict(model, data);
+    const Predictions p = Predict(model, data, load_.num_threads);
     const int N = model.num_joints();
     const Eigen::Index m = data.size();
 

@@ -1,7 +1,9 @@
 #include "structgp/model/robot_model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "structgp/core/validate.h"
 #include "structgp/feature/effect_feature_map.h"
@@ -11,6 +13,7 @@
 #include "structgp/feature/pol_feature_map.h"
 #include "structgp/feature/rigid_body_torque_feature_map.h"
 #include "structgp/feature/sum_feature_map.h"
+#include "structgp/internal/workers.h"
 #include "structgp/kernel/feature_kernel.h"
 #include "structgp/kernel/leading_inputs_kernel.h"
 #include "structgp/kernel/pol_kernel.h"
@@ -564,25 +567,38 @@ Status RobotModel::PredictWithVariance(const ConstVectorRef& x, VectorRef mean,
   return PredictWithVariance(x, mean, latent_variance, noisy_variance, workspace);
 }
 
-void RobotModel::PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std) const {
+void RobotModel::PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std,
+                             int num_threads) const {
   RequireSize("RobotModel::PredictRows X", X.cols(), input_dim(), "columns");
   RequireFinite("RobotModel::PredictRows X", X);
-  const int N = num_joints_;
-  mean->resize(X.rows(), N);
-  if (latent_std) latent_std->resize(X.rows(), N);
-  Vector x(input_dim()), m(N), lv(N), nv(N);
-  Workspace workspace = MakeWorkspace();
-  for (Eigen::Index i = 0; i < X.rows(); ++i) {
-    x = X.row(i).transpose();
-    const Status s = latent_std ? PredictWithVariance(x, m, lv, nv, workspace)
-                                : Predict(x, m, workspace);
-    if (s != Status::kOk) {
-      throw std::runtime_error(std::string("RobotModel::PredictRows: row ") + std::to_string(i) +
-                               ": " + ToString(s));
-    }
-    mean->row(i) = m.transpose();
-    if (latent_std) latent_std->row(i) = lv.cwiseSqrt().transpose();
+  if (num_threads < 1) {
+    throw std::invalid_argument("RobotModel::PredictRows: expected num_threads >= 1, got " +
+                                std::to_string(num_threads));
   }
+  const int N = num_joints_;
+  const Eigen::Index rows = X.rows();
+  mean->resize(rows, N);
+  if (latent_std) latent_std->resize(rows, N);
+  // Contiguous ranges of rows, one per worker with its own workspace: each row's prediction
+  // is the one-thread one, and the first failing row is reported as on one thread (the
+  // workers' errors are rethrown in range order).
+  const int workers =
+      static_cast<int>(std::max<Eigen::Index>(1, std::min<Eigen::Index>(num_threads, rows)));
+  internal::RunWorkers(workers, [&](int w) {
+    Vector x(input_dim()), m(N), lv(N), nv(N);
+    Workspace workspace = MakeWorkspace();
+    for (Eigen::Index i = rows * w / workers; i < rows * (w + 1) / workers; ++i) {
+      x = X.row(i).transpose();
+      const Status s = latent_std ? PredictWithVariance(x, m, lv, nv, workspace)
+                                  : Predict(x, m, workspace);
+      if (s != Status::kOk) {
+        throw std::runtime_error(std::string("RobotModel::PredictRows: row ") +
+                                 std::to_string(i) + ": " + ToString(s));
+      }
+      mean->row(i) = m.transpose();
+      if (latent_std) latent_std->row(i) = lv.cwiseSqrt().transpose();
+    }
+  });
 }
 
 std::vector<std::string> RobotModel::ComponentNames() const {

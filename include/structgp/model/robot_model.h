@@ -242,8 +242,13 @@ class RobotModel {
   /// each finite and > 0.
   void SetLatentVarianceScale(const Vector& scale);
   /// Means (m x N) and, if not null, latent standard deviations (m x N) for every row of X.
-  /// One workspace for all rows (allocates).
-  void PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std = nullptr) const;
+  /// On num_threads threads (contiguous ranges of rows, a workspace each; allocates): the
+  /// same result bit for bit for any number, and the same first failing row in the error.
+  /// Throws std::invalid_argument on bad sizes, NaN/Inf or num_threads < 1,
+  /// std::runtime_error naming the row when a prediction fails numerically. More than one
+  /// thread needs feature maps whose Evaluate may be called concurrently (the library's are).
+  void PredictRows(const ConstMatrixRef& X, Matrix* mean, Matrix* latent_std = nullptr,
+                   int num_threads = 1) const;
 
   /// True when the fitted model splits its predictions into components: a weight-space
   /// feature-map model (pol, motor), or rbd/lag.
