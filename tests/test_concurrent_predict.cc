@@ -8,6 +8,7 @@
 
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -116,18 +117,34 @@ TEST(ConcurrentPredict, KernelGP) {
   });
 }
 
-void ExpectRobotModelConcurrent(const std::string& spec_text, Form form) {
-  SCOPED_TRACE(spec_text);
-  std::mt19937_64 rng(kSeed + 2);
-  const int N = 2, m = 300;
+// A two-joint model of the spec fitted on m random states and torques (null, with a failure
+// recorded, when the fit fails), and `queries` random states to predict at.
+struct RandomFit {
+  std::unique_ptr<RobotModel> model;
+  Matrix queries;
+};
+RandomFit FitOnRandomData(const std::string& spec_text, Form form, int m, int queries,
+                          unsigned seed) {
+  const int N = 2;
+  std::mt19937_64 rng(seed);
   RobotModelOptions options;
   options.form = form;
-  RobotModel model(ParseModelSpec(spec_text), N, options);
+  auto model = std::make_unique<RobotModel>(ParseModelSpec(spec_text), N, options);
   const Matrix X = Random(m, 3 * N, &rng);
   const Matrix Y = Random(m, N, &rng, 2.0);
-  ASSERT_EQ(model.Fit(X, Y), Status::kOk);
-  const RobotModel& shared = model;
-  const Matrix queries = Random(40, 3 * N, &rng);
+  const Status status = model->Fit(X, Y);
+  EXPECT_EQ(status, Status::kOk);
+  if (status != Status::kOk) model.reset();
+  return {std::move(model), Random(queries, 3 * N, &rng)};
+}
+
+void ExpectRobotModelConcurrent(const std::string& spec_text, Form form) {
+  SCOPED_TRACE(spec_text);
+  const int N = 2;
+  const RandomFit fit = FitOnRandomData(spec_text, form, 300, 40, kSeed + 2);
+  ASSERT_TRUE(fit.model);
+  const RobotModel& shared = *fit.model;
+  const Matrix& queries = fit.queries;
   ExpectConcurrentEqualsSerial([&](Matrix* out) {
     RobotModel::Workspace workspace = shared.MakeWorkspace();
     out->resize(queries.rows(), 2 * N);
@@ -163,15 +180,10 @@ TEST(ConcurrentPredict, PredictRowsOnThreadsEqualsOneThread) {
   for (const auto& [spec_text, form] : std::vector<std::pair<std::string, Form>>{
            {"pol", Form::kWeightSpace}, {"rbf+fri", Form::kAuto}, {"lagk+fri", Form::kAuto}}) {
     SCOPED_TRACE(spec_text);
-    std::mt19937_64 rng(kSeed + 3);
-    const int N = 2, m = 200;
-    RobotModelOptions options;
-    options.form = form;
-    RobotModel model(ParseModelSpec(spec_text), N, options);
-    const Matrix X = Random(m, 3 * N, &rng);
-    const Matrix Y = Random(m, N, &rng, 2.0);
-    ASSERT_EQ(model.Fit(X, Y), Status::kOk);
-    const Matrix queries = Random(41, 3 * N, &rng);
+    const RandomFit fit = FitOnRandomData(spec_text, form, 200, 41, kSeed + 3);
+    ASSERT_TRUE(fit.model);
+    const RobotModel& model = *fit.model;
+    const Matrix& queries = fit.queries;
     Matrix mean_one, std_one;
     model.PredictRows(queries, &mean_one, &std_one);
     ASSERT_TRUE(mean_one.allFinite() && std_one.allFinite());
