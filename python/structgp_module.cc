@@ -364,7 +364,8 @@ class Model {
   }
   const RobotModel& fitted(const char* what) const { return *shared(what); }
 
-  py::object Predict(const py::object& X, const py::object& t, bool return_std) const {
+  py::object Predict(const py::object& X, const py::object& t, bool return_std,
+                     int threads) const {
     const std::shared_ptr<const RobotModel> held = shared("predict");
     const RobotModel& model = *held;
     const Matrix inputs = ModelInputs(model, AsMatrix(X, "X"), AsVector(t, "t"));
@@ -372,7 +373,7 @@ class Model {
     {
       py::gil_scoped_release release;
       try {
-        model.PredictRows(inputs, &mean, return_std ? &std_dev : nullptr);
+        model.PredictRows(inputs, &mean, return_std ? &std_dev : nullptr, threads);
       } catch (const std::invalid_argument&) {
         throw;
       } catch (const std::runtime_error& e) {
@@ -491,9 +492,10 @@ save / Model.load use the CLI's model files.
            "(False: `structgp fit --no-calibrate-bands`; band_coverage: that coverage, as "
            "--band-coverage). Returns self; the summary is in .summary. Raises ValueError for bad input, structgp.Error when the fit fails.")
       .def("predict", &Model::Predict, py::arg("X"), py::arg("t") = py::none(),
-           py::arg("return_std") = false,
+           py::arg("return_std") = false, py::arg("threads") = 1,
            "Predicted torques (m x N); with return_std=True also the posterior standard "
-           "deviation of the mean torque (latent, without measurement noise), as (mean, std).")
+           "deviation of the mean torque (latent, without measurement noise), as (mean, std). "
+           "threads: threads sharing the rows (the same result for any number).")
       .def("components", &Model::Components, py::arg("X"), py::arg("t") = py::none(),
            "The prediction split into physical parts: dict name -> (mean, std), each m x N "
            "('inertial', 'coriolis', 'gravity', 'friction', each effect); the means add up to "

@@ -80,7 +80,8 @@ def test_coefficients_are_named_and_recover_the_hidden_friction(logs):
 
 def test_a_saved_lagk_model_loads_back_exactly(logs, tmp_path):
     """The Euler-Lagrange kernel GP through inducing states: the rows and inducing states are
-    stored and factorised again on load, to the same predictions bit for bit."""
+    stored and factorised again on load, to the same predictions bit for bit, also with the
+    rows predicted on several threads."""
     train, test = logs
     X, Y = train.X[:600], train.Y[:600]
     model = structgp.Model("lagk+fri").fit(X, Y, None, hyper="fixed")
@@ -89,10 +90,14 @@ def test_a_saved_lagk_model_loads_back_exactly(logs, tmp_path):
     assert json.loads(path.read_text())["form"] == "euler_lagrange"
     loaded = structgp.Model.load(str(path))
     threaded = structgp.Model.load(str(path), threads=3)
-    for a, b, c in zip(model.predict(test.X, None, return_std=True),
-                       loaded.predict(test.X, None, return_std=True),
-                       threaded.predict(test.X, None, return_std=True)):
+    for a, b, c, d in zip(model.predict(test.X, None, return_std=True),
+                          loaded.predict(test.X, None, return_std=True),
+                          threaded.predict(test.X, None, return_std=True),
+                          threaded.predict(test.X, None, return_std=True, threads=3)):
         np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(a, c)
+        np.testing.assert_array_equal(a, d)
     with pytest.raises(ValueError):
         structgp.Model.load(str(path), threads=0)
+    with pytest.raises(ValueError):
+        loaded.predict(test.X, None, threads=0)
