@@ -119,15 +119,18 @@ def covered_items(prof_dir, objects, source_root):
 
 
 def objects_of(test, build_dir):
-    """The test's program, and the programs it may start (the CLI, the examples)."""
+    """The test's program, and the programs it may start (the CLI, a program named in its
+    arguments)."""
     objects = [test["command"][0]]
     for extra in ("src/cli/structgp",):
         path = os.path.join(build_dir, extra)
         if os.path.exists(path) and path not in objects:
             objects.append(path)
     for word in test["command"][1:]:
-        if os.path.isfile(word) and os.access(word, os.X_OK) and word not in objects:
-            objects.append(word)
+        # A program given as an argument, or as a definition (cmake -DPROGRAM=path -P script).
+        path = word.split("=", 1)[1] if word.startswith("-D") and "=" in word else word
+        if os.path.isfile(path) and os.access(path, os.X_OK) and path not in objects:
+            objects.append(path)
     return objects
 
 

@@ -180,7 +180,7 @@ TEST(EulerLagrangeGP, DtcWithEveryStateInducedEqualsTheExactPosterior) {
 // with a last block shorter than the others, a system of two panels, the second shorter, and
 // bit for bit the same for 1 to 7 workers.
 TEST(EulerLagrangeGP, DtcOverBlocksAndWorkersEqualsTheDenseFormulas) {
-  // Four joints: a space of more functions than the p N = 320 inducing torques, so that every
+  // Four joints: a space of more functions than the p N = 192 inducing torques, so that every
   // panel of the system carries information (at two joints the inducing torques beyond the
   // space's few dozen functions leave rows of V near zero).
   std::mt19937 rng(8);
