@@ -4,10 +4,10 @@
 # into a scratch prefix, builds the downstream consumer in examples/consumer against it and
 # imports the installed Python module. Then the reliability passes
 # (docs/reliability.md): the suite again under AddressSanitizer + UndefinedBehaviorSanitizer
-# (build-asan, clang; the tests that run all the code the suite runs, tests/release_only.txt and
-# tests/sanitizer_redundant.txt name the others), the threaded tests under ThreadSanitizer (build-tsan), and each libFuzzer
-# target, built in the same instrumented tree as the ASan suite, on 100,000 inputs from a fixed
-# seed (scripts/run-fuzzers.sh).
+# (build-asan, clang; the tests that run all the code the suite runs, tests/release_only.txt
+# and tests/sanitizer_redundant.txt name the others), the threaded tests under
+# ThreadSanitizer (build-tsan), and each libFuzzer target, built in the same instrumented tree
+# as the ASan suite, on 100,000 inputs from a fixed seed (scripts/run-fuzzers.sh).
 # STRUCTGP_SKIP_SANITIZERS=1 skips these passes (for a quick local run; CI runs them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -68,8 +68,8 @@ if [ "${STRUCTGP_SKIP_SANITIZERS:-0}" != 1 ]; then
   # the libFuzzer targets (STRUCTGP_BUILD_FUZZERS: the library and the fuzz targets carry
   # libFuzzer's coverage instrumentation; the tests, the CLI and the simulator, which feed no
   # fuzzer, do not), so that one instrumented library serves both passes: every test of the
-  # suite but those of the two lists below (docs/reliability.md, section 5). Benchmark programs are not tests, and the
-  # experiments' quick checks are too slow under ASan: both left out.
+  # suite but those of the two lists below (docs/reliability.md, section 5). Benchmark programs
+  # are not tests, and the experiments' quick checks are too slow under ASan: both left out.
   asan=${STRUCTGP_ASAN_BUILD_DIR:-build-asan}
   # A tree configured with another compiler (GCC, before) is configured again from scratch.
   if [ -f "$asan/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++' "$asan/CMakeCache.txt"; then
