@@ -20,6 +20,7 @@ packages=(
   python3-pytest  # its tests (python/tests/, in ctest)
   python3-matplotlib  # examples/python/diagnose_and_plot.py (its figure in docs/python.md)
   clang libclang-rt-14-dev  # libFuzzer targets in fuzz/ (scripts/run-fuzzers.sh)
+  lld  # a faster linker for the test programs (CMakeLists.txt: STRUCTGP_USE_LLD)
 )
 
 missing=()
