@@ -172,11 +172,16 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   EXPECT_EQ(r.code, 0) << r.err;
   r = RunCli(dir, {"evaluate", "--model", lagk, "--data", test});
   EXPECT_EQ(r.code, 0) << r.err;
-  // Refactorised on load by two workers: the same errors to the printed digits.
-  const CliResult threaded =
-      RunCli(dir, {"evaluate", "--model", lagk, "--data", test, "--threads", "2"});
-  EXPECT_EQ(threaded.code, 0) << threaded.err;
-  EXPECT_EQ(threaded.out, r.out);
+  // evaluate runs on the machine's threads by default; refactorised on load and predicted
+  // by one worker or by three: the same errors to the printed digits.
+  for (const char* threads : {"1", "3"}) {
+    const CliResult threaded =
+        RunCli(dir, {"evaluate", "--model", lagk, "--data", test, "--threads", threads});
+    EXPECT_EQ(threaded.code, 0) << threaded.err;
+    EXPECT_EQ(threaded.out, r.out) << "--threads " << threads;
+  }
+  const CliResult help = RunCli(dir, {"evaluate", "--help"});
+  EXPECT_TRUE(Contains(help.out, "default: this machine's hardware threads")) << help.out;
   r = RunCli(dir, {"diagnose", "--model", lagk, "--data", test, "--json",
                    dir.File("lagk.findings.json")});
   EXPECT_EQ(r.code, 0) << r.err;

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 
 #include "structgp/io/atomic_file.h"
 #include "structgp/io/csv.h"
@@ -80,10 +81,21 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
       ->capture_default_str();
 }
 
-void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options) {
-  command->add_option("--threads", options->num_threads,
-                      "Threads that refactorise a lagk model through its inducing states on load "
-                      "and predict the log's rows (the same result for any number)")
+int MachineThreads() {
+  const unsigned n = std::thread::hardware_concurrency();  // 0 when unknown
+  return static_cast<int>(std::clamp(n, 1u, 256u));
+}
+
+void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options,
+                        ThreadsDefault default_threads) {
+  std::string help =
+      "Threads that refactorise a lagk model through its inducing states on load and predict "
+      "the log's rows (the same result for any number)";
+  if (default_threads == ThreadsDefault::kMachine) {
+    options->num_threads = MachineThreads();
+    help += "; default: this machine's hardware threads";
+  }
+  command->add_option("--threads", options->num_threads, help)
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
 }

@@ -86,9 +86,20 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags);
 /// and for a URDF that cannot be read or has no such chain (the message names the file).
 std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags);
 
+/// The machine's hardware threads (std::thread::hardware_concurrency), in 1..256.
+int MachineThreads();
+
+/// Whether --threads defaults to one thread or to the machine's.
+enum class ThreadsDefault {
+  kOne,      // commands that refit (diagnose): the memory of a batch fit grows with its threads
+  kMachine,  // commands that load and predict only: the same result for any number of threads
+};
+
 /// --threads of the commands that read a model file (LoadOptions::num_threads: a lagk model
-/// through inducing states is factorised again on load).
-void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options);
+/// through inducing states is factorised again on load). With kMachine, options->num_threads
+/// is set to MachineThreads() first, and the help says so.
+void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options,
+                        ThreadsDefault default_threads = ThreadsDefault::kOne);
 
 /// "D = 134 features", "P = 42 parameters", "kernel model": the size of a model, for summaries.
 std::string ModelSize(const RobotModel& model);

@@ -36,7 +36,7 @@ class CompareCommand : public Command {
         "Example:\n"
         "  structgp compare --model before.json --model after.json --data test.csv "
         "--report compare.html");
-    AddLoadThreadsFlag(cmd, &load_);
+    AddLoadThreadsFlag(cmd, &load_, ThreadsDefault::kMachine);
     return cmd;
   }
 

@@ -34,7 +34,7 @@ class EvaluateCommand : public Command {
         "certainty than it has ('all': the mean of the joints).\n"
         "Example:\n"
         "  structgp evaluate --model model.json --data test.csv --json errors.json");
-    AddLoadThreadsFlag(cmd, &load_);
+    AddLoadThreadsFlag(cmd, &load_, ThreadsDefault::kMachine);
     return cmd;
   }
 

@@ -35,7 +35,7 @@ class PredictCommand : public Command {
         "the posterior standard deviation of the mean torque (without measurement noise).\n"
         "Example:\n"
         "  structgp predict --model model.json --data test.csv --out pred.csv --components");
-    AddLoadThreadsFlag(cmd, &load_);
+    AddLoadThreadsFlag(cmd, &load_, ThreadsDefault::kMachine);
     return cmd;
   }
 
