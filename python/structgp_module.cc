@@ -252,6 +252,15 @@ void BindFitSummary(py::module_& m) {
 
 // ---- the model -------------------------------------------------------------------------------
 
+// threads= of fit, predict and load: 1..256, as the CLI's --threads (a larger count would start
+// that many system threads for a batch fit or a long log).
+int CheckedThreads(int threads) {
+  if (threads < 1 || threads > 256) {
+    throw std::invalid_argument("threads: expected 1 to 256, got " + std::to_string(threads));
+  }
+  return threads;
+}
+
 class Model {
  public:
   Model(const py::object& spec, const py::object& base, const py::object& friction,
@@ -294,7 +303,7 @@ class Model {
       throw std::invalid_argument("root/tip: they select a chain of urdf=, which is not given");
     }
     options_.friction_width = friction_width;
-    options_.batch.num_threads = threads;
+    options_.batch.num_threads = CheckedThreads(threads);
     options_.batch.max_kernel_rows = max_kernel_rows;
   }
 
@@ -368,6 +377,7 @@ class Model {
                      int threads) const {
     const std::shared_ptr<const RobotModel> held = shared("predict");
     const RobotModel& model = *held;
+    CheckedThreads(threads);
     const Matrix inputs = ModelInputs(model, AsMatrix(X, "X"), AsVector(t, "t"));
     Matrix mean, std_dev;
     {
@@ -510,7 +520,7 @@ save / Model.load use the CLI's model files.
           "load",
           [](const std::string& path, int threads) {
             LoadOptions options;
-            options.num_threads = threads;
+            options.num_threads = CheckedThreads(threads);
             py::gil_scoped_release release;
             return Model(LoadModel(path, options));
           },

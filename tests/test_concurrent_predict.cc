@@ -199,5 +199,35 @@ TEST(ConcurrentPredict, PredictRowsOnThreadsEqualsOneThread) {
   }
 }
 
+// A row whose prediction fails (finite inputs whose features overflow) is named as on one
+// thread: the first failing row of the log, not the first that a worker reached. Rows 7 and
+// 30 fail, in the first range and a later one for every thread count from 2 on.
+TEST(ConcurrentPredict, PredictRowsNamesTheFirstFailingRowOnAnyThreads) {
+  const RandomFit fit = FitOnRandomData("pol", Form::kWeightSpace, 200, 41, kSeed + 5);
+  ASSERT_TRUE(fit.model);
+  Matrix queries = fit.queries;
+  const int N = fit.model->num_joints();
+  queries(30, N) = 1e200;  // q-dot of joint 1: the map's products of velocities overflow
+  queries(7, N) = 1e200;
+  for (int threads : {1, 2, 3, kThreads}) {
+    SCOPED_TRACE(threads);
+    Matrix mean, std;
+    try {
+      fit.model->PredictRows(queries, &mean, &std, threads);
+      ADD_FAILURE() << "no error for rows 7 and 30";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("row 7:"), std::string::npos) << e.what();
+    }
+    queries(7, N) = 0.1;  // now row 30 is the first
+    try {
+      fit.model->PredictRows(queries, &mean, nullptr, threads);
+      ADD_FAILURE() << "no error for row 30";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("row 30:"), std::string::npos) << e.what();
+    }
+    queries(7, N) = 1e200;
+  }
+}
+
 }  // namespace
 }  // namespace structgp

@@ -101,3 +101,10 @@ def test_a_saved_lagk_model_loads_back_exactly(logs, tmp_path):
         structgp.Model.load(str(path), threads=0)
     with pytest.raises(ValueError):
         loaded.predict(test.X, None, threads=0)
+    # As the CLI's --threads: at most 256 (more would start that many threads).
+    with pytest.raises(ValueError, match="threads: expected 1 to 256, got 257"):
+        loaded.predict(test.X, None, threads=257)
+    with pytest.raises(ValueError, match="threads"):
+        structgp.Model.load(str(path), threads=1000)
+    with pytest.raises(ValueError, match="threads"):
+        structgp.Model("pol", threads=257)
