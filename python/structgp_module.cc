@@ -266,7 +266,7 @@ class Model {
   Model(const py::object& spec, const py::object& base, const py::object& friction,
         const py::object& effects, const py::object& urdf, const std::string& root,
         const std::string& tip, const std::vector<double>& gravity, double friction_width,
-        int threads, int max_kernel_rows) {
+        int threads, int max_kernel_rows, int inducing_states) {
     if (!spec.is_none()) {
       if (!base.is_none() || !friction.is_none()) {
         throw std::invalid_argument("Model: give the model either as a spec text ('" +
@@ -305,6 +305,11 @@ class Model {
     options_.friction_width = friction_width;
     options_.batch.num_threads = CheckedThreads(threads);
     options_.batch.max_kernel_rows = max_kernel_rows;
+    if (inducing_states < 0) {
+      throw std::invalid_argument("inducing_states: expected >= 0 (0: exact on every row), got " +
+                                  std::to_string(inducing_states));
+    }
+    options_.batch.inducing_states = inducing_states;
   }
 
   explicit Model(RobotModel model)
@@ -443,7 +448,15 @@ class Model {
     return out;
   }
 
-  void Save(const std::string& path) const { SaveModel(path, fitted("save")); }
+  void Save(const std::string& path, bool posterior_file) const {
+    SaveOptions options;
+    options.posterior_file = posterior_file;
+    SaveModel(path, fitted("save"), options);
+  }
+
+  // What Model.load did with the model's posterior file.
+  bool posterior_file_read_ = false;
+  std::string posterior_file_note_;
 
   std::string ModelFile() const { return ModelFileText(fitted("model_file")); }
 
@@ -478,13 +491,14 @@ save / Model.load use the CLI's model files.
 )doc")
       .def(py::init<const py::object&, const py::object&, const py::object&, const py::object&,
                     const py::object&, const std::string&, const std::string&,
-                    const std::vector<double>&, double, int, int>(),
+                    const std::vector<double>&, double, int, int, int>(),
            py::arg("spec") = py::none(), py::kw_only(), py::arg("base") = py::none(),
            py::arg("friction") = py::none(), py::arg("effects") = py::none(),
            py::arg("urdf") = py::none(), py::arg("root") = "", py::arg("tip") = "",
            py::arg("gravity") = std::vector<double>{0.0, 0.0, -9.81},
            py::arg("friction_width") = RobotModelOptions().friction_width,
-           py::arg("threads") = 1, py::arg("max_kernel_rows") = kDefaultMaxKernelRows)
+           py::arg("threads") = 1, py::arg("max_kernel_rows") = kDefaultMaxKernelRows,
+           py::arg("inducing_states") = BatchFitOptions().inducing_states)
       .def("fit", &Model::Fit, py::arg("X"), py::arg("Y"), py::arg("t") = py::none(),
            py::kw_only(), py::arg("hyper") = "ml", py::arg("starts") = py::none(),
            py::arg("prior") = "gaussian", py::arg("check") = true, py::arg("verbose") = false,
@@ -514,19 +528,34 @@ save / Model.load use the CLI's model files.
            "Fitted friction and effect coefficients: dict name -> (value, std) on the torque of "
            "the feature's joint ('coulomb@2'); a feature of every joint ('offset') in weight "
            "space has one per joint torque (arrays of N).")
-      .def("save", &Model::Save, py::arg("path"),
-           "Writes the model file of `structgp fit --out` (atomically).")
+      .def("save", &Model::Save, py::arg("path"), py::arg("posterior_file") = true,
+           "Writes the model file of `structgp fit --out` (atomically). A lagk model through "
+           "inducing states also writes path + '.posterior', its posterior's factors, which "
+           "load reads instead of computing them from the rows (posterior_file=False: not "
+           "written).")
       .def_static(
           "load",
-          [](const std::string& path, int threads) {
+          [](const std::string& path, int threads, bool posterior_file) {
             LoadOptions options;
             options.num_threads = CheckedThreads(threads);
+            options.posterior_file = posterior_file;
+            LoadSummary summary;
             py::gil_scoped_release release;
-            return Model(LoadModel(path, options));
+            Model model(LoadModel(path, options, &summary));
+            model.posterior_file_note_ = summary.posterior_file_note;
+            model.posterior_file_read_ = summary.posterior_file_read;
+            return model;
           },
-          py::arg("path"), py::arg("threads") = 1,
-          "Reads a model file written by save or by `structgp fit`. threads: workers "
+          py::arg("path"), py::arg("threads") = 1, py::arg("posterior_file") = true,
+          "Reads a model file written by save or by `structgp fit`, and its posterior file "
+          "when it has one (posterior_file=False: computed from the rows). threads: workers "
           "factorising a lagk model's posterior again (the same result for any number).")
+      .def_property_readonly(
+          "posterior_file_read", [](const Model& s) { return s.posterior_file_read_; },
+          "load read the model's posterior from its posterior file")
+      .def_property_readonly(
+          "posterior_file_note", [](const Model& s) { return s.posterior_file_note_; },
+          "Why load did not use a posterior file that was there ('' otherwise)")
       .def("model_file", &Model::ModelFile, "The text save writes.")
       .def_property_readonly("spec", [](const Model& s) { return ModelLabel(s.spec()); },
                              "'pol+fri + coulomb@2': the model and its effects")

@@ -172,6 +172,7 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   EXPECT_EQ(r.code, 0) << r.err;
   r = RunCli(dir, {"evaluate", "--model", lagk, "--data", test});
   EXPECT_EQ(r.code, 0) << r.err;
+  const std::string threaded_reference = r.out;
   // evaluate runs on the machine's threads by default; refactorised on load and predicted
   // by one worker or by three: the same errors to the printed digits.
   for (const char* threads : {"1", "3"}) {
@@ -182,6 +183,29 @@ TEST(Cli, FitPredictEvaluateDiagnoseCompareEndToEnd) {
   }
   const CliResult help = RunCli(dir, {"evaluate", "--help"});
   EXPECT_TRUE(Contains(help.out, "default: this machine's hardware threads")) << help.out;
+  // fit wrote the posterior file next to the model file, and evaluate read it (no note). One
+  // of another fit is not used: a note on stderr, and the same errors, computed from the rows.
+  const std::string posterior_file = lagk + ".posterior";
+  ASSERT_TRUE(std::filesystem::exists(posterior_file));
+  EXPECT_FALSE(Contains(r.err, "note:")) << r.err;
+  const std::string lagk_other = dir.File("lagk_other.json");
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk", "--lagk-sigmas",
+                   "3", "--lagk-ml-values", "200", "--inducing-states", "100", "--out",
+                   lagk_other, "-q"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string kept = ReadFile(posterior_file);
+  WriteFile(posterior_file, ReadFile(lagk_other + ".posterior"));
+  r = RunCli(dir, {"evaluate", "--model", lagk, "--data", test});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out, threaded_reference) << r.err;
+  EXPECT_TRUE(Contains(r.err, "written for another model file")) << r.err;
+  WriteFile(posterior_file, kept);
+  // --no-posterior-file writes none, and removes the one of the file it replaces.
+  r = RunCli(dir, {"fit", "--data", dir.File("small.csv"), "--model", "lagk", "--lagk-sigmas",
+                   "3", "--lagk-ml-values", "200", "--inducing-states", "100", "--out",
+                   lagk_other, "-q", "--no-posterior-file"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(lagk_other + ".posterior"));
   r = RunCli(dir, {"diagnose", "--model", lagk, "--data", test, "--json",
                    dir.File("lagk.findings.json")});
   EXPECT_EQ(r.code, 0) << r.err;

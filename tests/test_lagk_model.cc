@@ -1,18 +1,25 @@
 // The Euler-Lagrange kernel GP as a product model ("lagk", "lagk+fri"): FitModel against the
 // same steps by hand (FitEulerLagrangeGP's search, then EulerLagrangeGP::Condition), the model
-// file round trip (exact and through inducing states), the allocation-free one-state
-// prediction of RobotModel, effects of the state and of the time, and the clear refusals of what
-// it does not do (online updates, cross-validation); the diagnosis loop on lagk.
+// file round trip (exact and through inducing states, with and without its posterior file),
+// the allocation-free one-state prediction of RobotModel, effects of the state and of the
+// time, and the clear refusals of what it does not do (online updates, cross-validation); the
+// diagnosis loop on lagk.
+
+#include <zlib.h>
 
 #include <cmath>
+#include <cstring>
+#include <filesystem>
 #include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "alloc_counter.h"
+#include "temp_files.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/diagnose/diagnosis.h"
 #include "structgp/fit/fit_model.h"
@@ -23,6 +30,8 @@
 
 namespace structgp {
 namespace {
+
+using Json = nlohmann::json;
 
 // A slow three-link log (30 via points in 20 s, 400 rows) with the hidden effect on joint 2,
 // and a 2.5x faster test log.
@@ -186,6 +195,131 @@ TEST(LagkModel, ModelFileRoundTripsExactAndThroughInducingStates) {
     EXPECT_THROW(ParseModelFile(ModelFileText(fit.model), "lagk.json", none),
                  std::invalid_argument);
   }
+}
+
+// The posterior file (io/model_file.h): a lagk model through inducing states saved with it
+// loads the factors of its pass over the rows from it, to the fitted model's predictions bit
+// for bit; a posterior file that is damaged, of another model file or missing is not used
+// (the note says why) and the posterior is computed from the rows, to the same predictions.
+TEST(LagkModel, PosteriorFileGivesTheSamePosteriorWithoutThePassOverTheRows) {
+  const sim::Dataset& d = Scenario().train;
+  const sim::Dataset& t = Scenario().test;
+  FitOptions options = QuickOptions();
+  options.method = HyperparameterMethod::kFixed;
+  options.model.batch.inducing_states = 60;
+  const FittedModel fit = FitModel(ParseModelSpec("lagk+fri"), d.X, d.Y, Vector(), options);
+  ASSERT_TRUE(fit.summary.IsUsable()) << fit.summary.message;
+  Matrix m0, s0;
+  fit.model.PredictRows(t.X, &m0, &s0);
+  const int N = fit.model.num_joints();
+  const Eigen::Index pn = 60 * N;
+
+  testing::TempDir dir("posterior_file");
+  const std::string path = dir.File("lagk.json");
+  const std::string posterior = PosteriorFilePath(path);
+  EXPECT_EQ(posterior, path + ".posterior");
+  SaveModel(path, fit.model);
+  const std::string bytes = testing::ReadFile(posterior);
+  const std::string checksum = Json::parse(testing::ReadFile(path)).at("checksum");
+  // Header, log p(Y), alpha, the factor's lower triangle, CRC-32.
+  const size_t header = 24 + 4 + 4 + checksum.size() + 8;
+  EXPECT_EQ(bytes.size(),
+            header + 8 * (1 + static_cast<size_t>(pn) + static_cast<size_t>(pn * (pn + 1) / 2)) + 4);
+  EXPECT_EQ(bytes, PosteriorFileBytes(fit.model));
+
+  struct Loaded {
+    Matrix mean, std;
+    LoadSummary summary;
+    double log_evidence = 0.0;
+  };
+  auto load = [&](bool posterior_file = true) {
+    Loaded l;
+    LoadOptions o;
+    o.posterior_file = posterior_file;
+    const RobotModel model = LoadModel(path, o, &l.summary);
+    model.PredictRows(t.X, &l.mean, &l.std);
+    l.log_evidence = model.gp().LogMarginalLikelihood();
+    return l;
+  };
+  const Loaded read = load();
+  EXPECT_TRUE(read.summary.posterior_file_read);
+  EXPECT_EQ(read.summary.posterior_file_note, "");
+  EXPECT_EQ(read.mean, m0);
+  EXPECT_EQ(read.std, s0);
+  EXPECT_EQ(read.log_evidence, fit.model.gp().LogMarginalLikelihood());
+  const Loaded computed = load(false);
+  EXPECT_FALSE(computed.summary.posterior_file_read);
+  EXPECT_EQ(computed.mean, m0);
+
+  // The factors are read, not computed again: a file whose alpha is changed (with its CRC
+  // made to match) changes the predictions.
+  auto with_crc = [](std::string b) {
+    const uLong crc = crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(b.data()),
+                            static_cast<uInt>(b.size() - 4));
+    const uint32_t c = static_cast<uint32_t>(crc);
+    std::memcpy(&b[b.size() - 4], &c, 4);
+    return b;
+  };
+  auto set_double = [](std::string* b, size_t offset, double value) {
+    std::memcpy(&(*b)[offset], &value, 8);
+  };
+  std::string changed = bytes;
+  set_double(&changed, header + 8, 1.0);  // alpha[0]
+  ASSERT_TRUE(testing::WriteFile(posterior, with_crc(changed)));
+  const Loaded altered = load();
+  EXPECT_TRUE(altered.summary.posterior_file_read);
+  EXPECT_NE(altered.mean, m0);
+  EXPECT_EQ(altered.std, s0);  // the variance does not use alpha
+
+  // Files that are not used, each with its note; the posterior is then computed from the rows.
+  auto expect_not_used = [&](const std::string& file_bytes, const std::string& note) {
+    SCOPED_TRACE(note);
+    ASSERT_TRUE(testing::WriteFile(posterior, file_bytes));
+    const Loaded l = load();
+    EXPECT_FALSE(l.summary.posterior_file_read);
+    EXPECT_NE(l.summary.posterior_file_note.find(note), std::string::npos)
+        << l.summary.posterior_file_note;
+    EXPECT_EQ(l.mean, m0);
+    EXPECT_EQ(l.std, s0);
+  };
+  std::string flipped = bytes;
+  flipped[header + 8 * 100] ^= 0x10;
+  expect_not_used(flipped, "CRC-32");
+  expect_not_used(bytes.substr(0, bytes.size() / 2), "truncated");
+  expect_not_used(bytes + "x", "after its end");
+  expect_not_used("a text file\n", "not a structgp posterior file");
+  std::string other_version = bytes;
+  other_version[24] = 7;
+  expect_not_used(other_version, "version 7");
+  // B >= I: a diagonal entry of its factor below 1 is not a posterior's (the CRC matching).
+  std::string small_diagonal = bytes;
+  set_double(&small_diagonal, header + 8 * (1 + static_cast<size_t>(pn)), 0.5);  // B's L(0, 0)
+  expect_not_used(with_crc(small_diagonal), "not those of a posterior");
+  // The posterior file of another fit (other rows): its checksum is another model file's.
+  const FittedModel other = FitModel(ParseModelSpec("lagk+fri"), d.X.topRows(300),
+                                     d.Y.topRows(300), Vector(), options);
+  ASSERT_TRUE(other.summary.IsUsable()) << other.summary.message;
+  expect_not_used(PosteriorFileBytes(other.model), "written for another model file");
+
+  // Saved without it, or as a model that has none (exact): no posterior file is left.
+  SaveOptions without;
+  without.posterior_file = false;
+  ASSERT_TRUE(testing::WriteFile(posterior, bytes));
+  SaveModel(path, fit.model, without);
+  EXPECT_FALSE(std::filesystem::exists(posterior));
+  SaveModel(path, fit.model);
+  EXPECT_TRUE(std::filesystem::exists(posterior));
+  options.model.batch.inducing_states = 0;
+  const FittedModel exact = FitModel(ParseModelSpec("lagk+fri"), d.X.topRows(100),
+                                     d.Y.topRows(100), Vector(), options);
+  ASSERT_TRUE(exact.summary.IsUsable()) << exact.summary.message;
+  EXPECT_EQ(PosteriorFileBytes(exact.model), "");
+  SaveModel(path, exact.model);
+  EXPECT_FALSE(std::filesystem::exists(posterior));
+  LoadSummary summary;
+  LoadModel(path, LoadOptions(), &summary);
+  EXPECT_FALSE(summary.posterior_file_read);
+  EXPECT_EQ(summary.posterior_file_note, "");
 }
 
 // Effects of the state ("lagk+fri + coulomb@2,offset@3"): fitted, saved and loaded with the

@@ -79,16 +79,24 @@ def test_coefficients_are_named_and_recover_the_hidden_friction(logs):
 
 
 def test_a_saved_lagk_model_loads_back_exactly(logs, tmp_path):
-    """The Euler-Lagrange kernel GP through inducing states: the rows and inducing states are
-    stored and factorised again on load, to the same predictions bit for bit, also with the
-    rows predicted on several threads."""
+    """The Euler-Lagrange kernel GP through 150 inducing states: the rows and inducing states
+    are stored, the posterior's factors in the posterior file, and the model loads to the same
+    predictions bit for bit, also with the rows predicted on several threads and with the
+    posterior computed from the rows instead."""
     train, test = logs
     X, Y = train.X[:600], train.Y[:600]
-    model = structgp.Model("lagk+fri").fit(X, Y, None, hyper="fixed")
+    model = structgp.Model("lagk+fri", inducing_states=150).fit(X, Y, None, hyper="fixed")
     path = tmp_path / "lagk.json"
     model.save(str(path))
     assert json.loads(path.read_text())["form"] == "euler_lagrange"
+    # The posterior file next to it: load reads the posterior's factors from it.
+    posterior = tmp_path / "lagk.json.posterior"
+    assert posterior.exists()
     loaded = structgp.Model.load(str(path))
+    assert loaded.posterior_file_read and loaded.posterior_file_note == ""
+    computed = structgp.Model.load(str(path), posterior_file=False)
+    assert not computed.posterior_file_read
+    np.testing.assert_array_equal(computed.predict(test.X, None), loaded.predict(test.X, None))
     threaded = structgp.Model.load(str(path), threads=3)
     for a, b, c, d in zip(model.predict(test.X, None, return_std=True),
                           loaded.predict(test.X, None, return_std=True),
@@ -108,3 +116,14 @@ def test_a_saved_lagk_model_loads_back_exactly(logs, tmp_path):
         structgp.Model.load(str(path), threads=1000)
     with pytest.raises(ValueError, match="threads"):
         structgp.Model("pol", threads=257)
+    # A damaged posterior file is not used, and says why; the predictions are the same.
+    damaged = bytearray(posterior.read_bytes())
+    damaged[-100] ^= 0x10
+    posterior.write_bytes(bytes(damaged))
+    reloaded = structgp.Model.load(str(path))
+    assert not reloaded.posterior_file_read
+    assert "CRC-32" in reloaded.posterior_file_note
+    np.testing.assert_array_equal(reloaded.predict(test.X, None), loaded.predict(test.X, None))
+    # Saved without it: none is left next to the model file.
+    model.save(str(path), posterior_file=False)
+    assert not posterior.exists()

@@ -238,13 +238,41 @@ void CheckOutputPath(const std::string& flag, const std::string& path) {
   }
 }
 
+void AddModelFile(std::vector<OutputFile>* outputs, const std::string& flag,
+                  const std::string& path, const RobotModel& model, bool posterior_file) {
+  if (!IsStdout(path)) {
+    std::string bytes = posterior_file ? PosteriorFileBytes(model) : std::string();
+    OutputFile posterior{flag, PosteriorFilePath(path), std::move(bytes)};
+    posterior.remove = posterior.contents.empty();
+    outputs->push_back(std::move(posterior));
+  }
+  outputs->push_back({flag, path, ModelFileText(model)});
+}
+
+RobotModel LoadModelFile(const std::string& path, const LoadOptions& options) {
+  LoadSummary summary;
+  RobotModel model = LoadModel(path, options, &summary);
+  if (!summary.posterior_file_note.empty()) {
+    std::fprintf(stderr, "note: %s: %s; the posterior was computed from the model's rows\n",
+                 PosteriorFilePath(path).c_str(), summary.posterior_file_note.c_str());
+  }
+  return model;
+}
+
 void WriteOutputs(const std::vector<OutputFile>& files) {
-  for (const auto& f : files) CheckOutputPath(f.flag, f.path);
   for (const auto& f : files) {
-    if (!IsStdout(f.path)) WriteTextAtomically(f.path, f.contents);
+    if (!f.remove) CheckOutputPath(f.flag, f.path);
   }
   for (const auto& f : files) {
-    if (!IsStdout(f.path)) continue;
+    if (!f.remove && !IsStdout(f.path)) WriteTextAtomically(f.path, f.contents);
+  }
+  for (const auto& f : files) {
+    if (!f.remove) continue;
+    std::error_code ec;
+    std::filesystem::remove(f.path, ec);  // a stale file; nothing lost if it cannot go
+  }
+  for (const auto& f : files) {
+    if (f.remove || !IsStdout(f.path)) continue;
     std::fflush(stderr);
     if (std::fwrite(f.contents.data(), 1, f.contents.size(), stdout) != f.contents.size() ||
         std::fflush(stdout) != 0) {
@@ -255,7 +283,7 @@ void WriteOutputs(const std::vector<OutputFile>& files) {
 
 void PrintWritten(std::FILE* stream, const std::vector<OutputFile>& files) {
   for (const auto& f : files) {
-    if (!IsStdout(f.path)) std::fprintf(stream, "wrote %s\n", f.path.c_str());
+    if (!f.remove && !IsStdout(f.path)) std::fprintf(stream, "wrote %s\n", f.path.c_str());
   }
 }
 

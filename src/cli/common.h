@@ -160,7 +160,15 @@ struct OutputFile {
   std::string flag;  // "--json"
   std::string path;
   std::string contents;
+  bool remove = false;  // instead: remove the file at path if there is one (after the writes)
 };
+/// A model file as outputs: its posterior file first (io/model_file.h: lagk through inducing
+/// states), then the model file. For a model without one, a posterior file left at its path
+/// by an earlier model file is removed. posterior_file = false writes none.
+void AddModelFile(std::vector<OutputFile>* outputs, const std::string& flag,
+                  const std::string& path, const RobotModel& model, bool posterior_file = true);
+/// LoadModel, saying on stderr why a posterior file next to the model file was not used.
+RobotModel LoadModelFile(const std::string& path, const LoadOptions& options = LoadOptions());
 /// The output path that means stdout.
 inline constexpr const char* kStdoutPath = "-";
 inline bool IsStdout(const std::string& path) { return path == kStdoutPath; }

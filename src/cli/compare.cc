@@ -50,7 +50,7 @@ class CompareCommand : public Command {
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     std::vector<RobotModel> models;
     for (const auto& path : models_) {
-      models.push_back(LoadModel(path, load_));
+      models.push_back(LoadModelFile(path, load_));
       if (models.back().num_joints() != models.front().num_joints()) {
         throw UsageError("--model '" + path + "': has " +
                          std::to_string(models.back().num_joints()) + " joints, '" +

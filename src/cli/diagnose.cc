@@ -111,7 +111,7 @@ class DiagnoseCommand : public Command {
     if (loop) CheckOutputPath("--out", out_);
     FromString(autocorrelation_, &options_.autocorrelation);  // checked by the flag
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
-    const RobotModel model = LoadModel(model_, load_);
+    const RobotModel model = LoadModelFile(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);  // also refuses a log without a time it needs
     RobotData train;
@@ -191,8 +191,8 @@ class DiagnoseCommand : public Command {
       throw NumericalError("the diagnosis failed on " + data_ + ": " + summary.message);
     }
     const RobotModel& result = improved ? *improved : model;
-    std::vector<OutputFile> outputs = {{"--json", json_, ToJson(summary)},
-                                       {"--out", out_, ModelFileText(result)}};
+    std::vector<OutputFile> outputs = {{"--json", json_, ToJson(summary)}};
+    if (!out_.empty()) AddModelFile(&outputs, "--out", out_, result);
     const Diagnosis& first = summary.rounds.front().diagnosis;
     if (!report_.empty()) {
       outputs.push_back({"--report", report_,

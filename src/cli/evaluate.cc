@@ -41,7 +41,7 @@ class EvaluateCommand : public Command {
   int Run() override {
     if (!json_.empty()) CheckOutputPath("--json", json_);
     std::FILE* const text_out = TextStream({{"--json", json_}});
-    const RobotModel model = LoadModel(model_, load_);
+    const RobotModel model = LoadModelFile(model_, load_);
     const RobotData data = ReadData(data_, model.num_joints());
     const Predictions p = Predict(model, data, load_.num_threads);
     const Errors e = ComputeErrors(p.mean, data.Y);

@@ -33,7 +33,10 @@ class FitCommand : public Command {
                     "cross-validation on a grid, pol/motor only) or fixed (defaults)")
         ->check(CLI::IsMember({"ml", "cv", "fixed"}))
         ->capture_default_str();
-    cmd->add_option("--out", out_, "Model file to write (replaced atomically; - for stdout)")
+    cmd->add_option("--out", out_,
+                    "Model file to write (replaced atomically; - for stdout). A lagk model "
+                    "through inducing states also writes OUT.posterior, which the commands that "
+                    "load it read instead of computing its posterior from the rows again")
         ->required();
     cmd->add_option("--json", json_,
                     "Also write the summary as JSON: the fit's termination, evidence, starts, "
@@ -57,6 +60,9 @@ class FitCommand : public Command {
                   "Each joint its own hyper-parameters (shape, block scales, noise, output "
                   "scale), searched on its torque alone: pol, motor, rbf, rbfs; about N times "
                   "the search time; the online learner (replay) needs the shared set");
+    cmd->add_flag("--no-posterior-file", no_posterior_file_,
+                  "Do not write OUT.posterior (a lagk model's posterior is then computed from "
+                  "its rows on every load: minutes at 6-7 joints)");
     cmd->add_flag("--no-check", no_check_,
                   "Skip the check of the hyper-parameters on held-out blocks of the data (and "
                   "so the calibration of the bands)");
@@ -160,7 +166,8 @@ class FitCommand : public Command {
     options.rigid_body = LoadRobot(robot_);
     RobotModel model = MakeModel(spec, data.num_joints, options);
     const FitSummary summary = FitModel(data, options_, progress, &model);
-    std::vector<OutputFile> outputs = {{"--out", out_, ModelFileText(model)}};
+    std::vector<OutputFile> outputs;
+    AddModelFile(&outputs, "--out", out_, model, !no_posterior_file_);
     if (!json_.empty()) outputs.push_back({"--json", json_, FitJson(model, data, summary)});
     std::fputs(FitSummaryText(model, data, summary).c_str(), text_out);
     WriteOutputs(outputs);
@@ -173,6 +180,7 @@ class FitCommand : public Command {
   std::string start_from_;
   bool no_check_ = false;
   bool no_calibrate_bands_ = false;
+  bool no_posterior_file_ = false;
   FitOptions options_;
   RobotFlags robot_;
   int max_kernel_rows_ = kDefaultMaxKernelRows;

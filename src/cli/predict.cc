@@ -42,7 +42,7 @@ class PredictCommand : public Command {
   int Run() override {
     CheckOutputPath("--out", out_);
     std::FILE* const text_out = TextStream({{"--out", out_}});
-    const RobotModel model = LoadModel(model_, load_);
+    const RobotModel model = LoadModelFile(model_, load_);
     if (components_ && !model.has_components()) {
       throw UsageError("--components: needs a weight-space pol or motor model, or rbd or lag; '" + model_ +
                        "' is " + ModelLabel(model.spec()) + " in " + ToString(model.gp().form()) +

@@ -76,7 +76,7 @@ class ReplayCommand : public Command {
     RobotData data;
     if (!model_.empty()) {
       if (!effects_.empty()) throw UsageError("--effects goes with --model-spec, not --model");
-      start = std::make_unique<RobotModel>(LoadModel(model_));
+      start = std::make_unique<RobotModel>(LoadModelFile(model_));
       data = ReadData(data_, start->num_joints());
     } else {
       const ModelSpec spec = ParseSpecFlags(spec_, effects_);
@@ -102,7 +102,7 @@ class ReplayCommand : public Command {
     std::vector<OutputFile> files;
     if (!out_.empty()) files.push_back({"--out", out_, ErrorsCsv(s, data, N)});
     if (!json_.empty()) files.push_back({"--json", json_, Json(s, N).dump(2) + "\n"});
-    if (!save_.empty()) files.push_back({"--save", save_, ModelFileText(*s.model)});
+    if (!save_.empty()) AddModelFile(&files, "--save", save_, *s.model);
     if (!report_.empty()) {
       const std::string label =
           ModelLabel(start->spec()) + (model_.empty() ? " from zero" : " from " + model_);

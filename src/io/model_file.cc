@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -409,7 +410,10 @@ Json FunctionSpaceJson(const Matrix& inputs, const Matrix& targets) {
 
 // ---- saving ---------------------------------------------------------------------------------
 
-std::string ModelFileText(const RobotModel& model) {
+namespace {
+
+// The model file's JSON object, its checksum included (ModelFileText, PosteriorFileBytes).
+Json ModelFileJson(const RobotModel& model) {
   if (!model.fitted()) throw std::invalid_argument("SaveModel: the model is not fitted");
   const GaussianProcess& gp = model.gp();
   const Hyperparameters& h = model.hyperparameters();
@@ -522,11 +526,185 @@ std::string ModelFileText(const RobotModel& model) {
     doc["function_space"] = FunctionSpaceJson(fs.inputs(), fs.targets());
   }
   doc["checksum"] = Checksum(doc);
-  return doc.dump(2) + "\n";
+  return doc;
 }
 
-void SaveModel(const std::string& path, const RobotModel& model) {
-  WriteTextAtomically(path, ModelFileText(model));
+// ---- the posterior file ---------------------------------------------------------------------
+
+constexpr char kPosteriorMagic[] = "structgp posterior file\n";
+constexpr uint32_t kPosteriorVersion = 1;
+// Longest model-file checksum text a posterior file may carry ("crc32:xxxxxxxx" today).
+constexpr uint32_t kMaxPosteriorChecksumLength = 256;
+
+bool LittleEndian() {
+  const uint16_t one = 1;
+  unsigned char first = 0;
+  std::memcpy(&first, &one, 1);
+  return first == 1;
+}
+
+template <class T>
+void AppendValue(std::string* out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out->append(bytes, sizeof(T));
+}
+
+void AppendDoubles(std::string* out, const double* values, size_t count) {
+  out->append(reinterpret_cast<const char*>(values), count * sizeof(double));
+}
+
+uLong Crc32Update(uLong crc, const char* data, size_t size) {
+  constexpr size_t kPiece = size_t{1} << 30;  // crc32 takes a uInt length
+  for (size_t begin = 0; begin < size; begin += kPiece) {
+    const size_t n = std::min(kPiece, size - begin);
+    crc = crc32(crc, reinterpret_cast<const Bytef*>(data + begin), static_cast<uInt>(n));
+  }
+  return crc;
+}
+
+// Reads a posterior file for a model file with checksum `model_checksum` and p N = pn inducing
+// torques. Null when there is none, or (with *note saying why) when it cannot be used.
+std::shared_ptr<EulerLagrangeGP::DtcFactors> ReadPosteriorFile(
+    const std::string& file, const std::string& model_checksum, Eigen::Index pn,
+    std::string* note) {
+  std::error_code ec;
+  if (!std::filesystem::exists(file, ec)) return nullptr;
+  if (!LittleEndian()) {
+    *note = "not read on a machine that is not little-endian";
+    return nullptr;
+  }
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    *note = std::string("cannot be opened: ") + std::strerror(errno);
+    return nullptr;
+  }
+  uLong crc = crc32(0L, Z_NULL, 0);
+  auto read = [&](void* destination, size_t size) {
+    in.read(static_cast<char*>(destination), static_cast<std::streamsize>(size));
+    if (static_cast<size_t>(in.gcount()) != size) return false;
+    crc = Crc32Update(crc, static_cast<const char*>(destination), size);
+    return true;
+  };
+  const std::string truncated = "damaged: it ends early (truncated)";
+  char magic[sizeof(kPosteriorMagic) - 1];
+  if (!read(magic, sizeof(magic)) ||
+      std::memcmp(magic, kPosteriorMagic, sizeof(magic)) != 0) {
+    *note = "not a structgp posterior file (it does not start with \"structgp posterior file\")";
+    return nullptr;
+  }
+  uint32_t version = 0, checksum_length = 0;
+  if (!read(&version, sizeof(version))) {
+    *note = truncated;
+    return nullptr;
+  }
+  if (version != kPosteriorVersion) {
+    *note = "version " + std::to_string(version) + ", this build reads version " +
+            std::to_string(kPosteriorVersion);
+    return nullptr;
+  }
+  if (!read(&checksum_length, sizeof(checksum_length)) ||
+      checksum_length > kMaxPosteriorChecksumLength) {
+    *note = checksum_length > kMaxPosteriorChecksumLength ? "damaged: a bad header" : truncated;
+    return nullptr;
+  }
+  std::string checksum(checksum_length, '\0');
+  if (!read(checksum.data(), checksum.size())) {
+    *note = truncated;
+    return nullptr;
+  }
+  if (checksum != model_checksum) {
+    *note = "written for another model file (its checksum " + checksum + ", the model file's " +
+            model_checksum + ")";
+    return nullptr;
+  }
+  uint64_t stored_pn = 0;
+  if (!read(&stored_pn, sizeof(stored_pn))) {
+    *note = truncated;
+    return nullptr;
+  }
+  if (stored_pn != static_cast<uint64_t>(pn)) {
+    *note = "damaged: it holds " + std::to_string(stored_pn) + " inducing torques, the model " +
+            std::to_string(pn);
+    return nullptr;
+  }
+  auto factors = std::make_shared<EulerLagrangeGP::DtcFactors>();
+  factors->alpha.resize(pn);
+  factors->factor_b = Matrix::Zero(pn, pn);
+  bool complete = read(&factors->log_evidence, sizeof(double)) &&
+                  read(factors->alpha.data(), static_cast<size_t>(pn) * sizeof(double));
+  for (Eigen::Index c = 0; complete && c < pn; ++c) {
+    complete = read(factors->factor_b.col(c).data() + c, static_cast<size_t>(pn - c) * sizeof(double));
+  }
+  const uLong computed = crc;
+  uint32_t stored_crc = 0;
+  if (!complete || !read(&stored_crc, sizeof(stored_crc))) {
+    *note = truncated;
+    return nullptr;
+  }
+  if (in.peek() != std::char_traits<char>::eof()) {
+    *note = "damaged: bytes after its end";
+    return nullptr;
+  }
+  if (stored_crc != static_cast<uint32_t>(computed)) {
+    *note = "damaged: its CRC-32 does not match its contents";
+    return nullptr;
+  }
+  if (EulerLagrangeGP::CheckDtcFactors(pn, *factors) != Status::kOk) {
+    *note = "damaged: its factors are not those of a posterior (a non-finite entry, or a "
+            "diagonal entry of B's factor below 1)";
+    return nullptr;
+  }
+  return factors;
+}
+
+}  // namespace
+
+std::string ModelFileText(const RobotModel& model) { return ModelFileJson(model).dump(2) + "\n"; }
+
+std::string PosteriorFilePath(const std::string& model_path) { return model_path + ".posterior"; }
+
+std::string PosteriorFileBytes(const RobotModel& model) {
+  if (!model.fitted()) throw std::invalid_argument("SaveModel: the model is not fitted");
+  const EulerLagrangeGP* euler = model.gp().euler_lagrange();
+  if (euler == nullptr || !euler->dtc() || !LittleEndian()) return std::string();
+  const std::string checksum = ModelFileJson(model).at("checksum").get<std::string>();
+  const Vector& alpha = euler->dtc_alpha();
+  const Matrix& factor_b = euler->dtc_factor_b();
+  const Eigen::Index pn = alpha.size();
+  RequireFiniteForSave("the posterior's alpha", alpha);
+  std::string out;
+  out.reserve(sizeof(kPosteriorMagic) + checksum.size() + 64 +
+              static_cast<size_t>(pn) * static_cast<size_t>(pn + 3) / 2 * sizeof(double));
+  out.append(kPosteriorMagic, sizeof(kPosteriorMagic) - 1);
+  AppendValue(&out, kPosteriorVersion);
+  AppendValue(&out, static_cast<uint32_t>(checksum.size()));
+  out.append(checksum);
+  AppendValue(&out, static_cast<uint64_t>(pn));
+  AppendValue(&out, euler->LogMarginalLikelihood());
+  AppendDoubles(&out, alpha.data(), static_cast<size_t>(pn));
+  for (Eigen::Index c = 0; c < pn; ++c) {
+    const auto column = factor_b.col(c).tail(pn - c);
+    RequireFiniteForSave("the posterior's factor", column);
+    AppendDoubles(&out, factor_b.col(c).data() + c, static_cast<size_t>(pn - c));
+  }
+  const uLong crc = Crc32Update(crc32(0L, Z_NULL, 0), out.data(), out.size());
+  AppendValue(&out, static_cast<uint32_t>(crc));
+  return out;
+}
+
+void SaveModel(const std::string& path, const RobotModel& model, const SaveOptions& options) {
+  const std::string text = ModelFileText(model);
+  const std::string posterior = options.posterior_file ? PosteriorFileBytes(model) : std::string();
+  const std::string posterior_path = PosteriorFilePath(path);
+  // The posterior file first: a crash between the two leaves it next to the old model file,
+  // whose checksum it does not carry, so that LoadModel does not use it.
+  if (!posterior.empty()) WriteTextAtomically(posterior_path, posterior);
+  WriteTextAtomically(path, text);
+  if (posterior.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(posterior_path, ec);  // the replaced file's, if any
+  }
 }
 
 // ---- loading --------------------------------------------------------------------------------
@@ -685,8 +863,13 @@ WeightSpaceGPState ReadWeightSpace(const Json& w, const std::string& p, const Fi
 
 }  // namespace
 
-RobotModel ParseModelFile(const std::string& text, const std::string& path,
-                          const LoadOptions& load) {
+namespace {
+
+// ParseModelFile; with posterior_path (LoadModel), a lagk model through inducing states takes
+// its posterior's factors from that file when it can be used (summary says which).
+RobotModel ParseModelFileWith(const std::string& text, const std::string& path,
+                              const LoadOptions& load, const std::string* posterior_path,
+                              LoadSummary* summary) {
   CheckLoadOptions(load);
   const FieldReader r(path);
   const Json doc = ParseJson(text, path);
@@ -785,7 +968,14 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
       state.inputs = r.DecodedMatrix(e, p, "inputs");
       state.targets = r.DecodedMatrix(e, p, "targets");
       if (e.contains("inducing")) state.inducing = r.DecodedMatrix(e, p, "inducing");
-      // The posterior is factorised again (O((m N)^3) exact, O(m N (p N)^2) through p states).
+      // The posterior is factorised again (O((m N)^3) exact, O(m N (p N)^2) through p states),
+      // unless its posterior file holds the factors of the pass over the rows.
+      if (posterior_path != nullptr && state.inducing.size() > 0) {
+        state.euler_lagrange_factors = ReadPosteriorFile(
+            *posterior_path, doc.at("checksum").get<std::string>(),
+            state.inducing.rows() * num_joints, &summary->posterior_file_note);
+        summary->posterior_file_read = state.euler_lagrange_factors != nullptr;
+      }
       return RobotModel::FromState(state);
     }
     if (active == Form::kRegressor) {
@@ -861,8 +1051,6 @@ RobotModel ParseModelFile(const std::string& text, const std::string& path,
   }
 }
 
-namespace {
-
 std::string ReadModelFileText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
@@ -878,9 +1066,20 @@ std::string ReadModelFileText(const std::string& path) {
 
 }  // namespace
 
-RobotModel LoadModel(const std::string& path, const LoadOptions& options) {
+RobotModel ParseModelFile(const std::string& text, const std::string& path,
+                          const LoadOptions& load) {
+  LoadSummary summary;
+  return ParseModelFileWith(text, path, load, nullptr, &summary);
+}
+
+RobotModel LoadModel(const std::string& path, const LoadOptions& options, LoadSummary* summary) {
   CheckLoadOptions(options);  // before reading the file
-  return ParseModelFile(ReadModelFileText(path), path, options);
+  LoadSummary local;
+  LoadSummary* out = summary != nullptr ? summary : &local;
+  *out = LoadSummary();
+  const std::string posterior_path = PosteriorFilePath(path);
+  return ParseModelFileWith(ReadModelFileText(path), path, options,
+                            options.posterior_file ? &posterior_path : nullptr, out);
 }
 
 ModelFileHeader ParseModelFileHeader(const std::string& text, const std::string& path) {

@@ -353,19 +353,11 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     dtc_ = false;
     return Status::kOk;
   }
-  Require(inducing.cols() == input_dim_, "inducing states need " + std::to_string(input_dim_) +
-                                             " columns, got " + std::to_string(inducing.cols()));
-  Require(AllFinite(inducing), "non-finite inducing state");
   // K_ZZ + J = L L^T (J: a jitter of 1e-8 of the mean diagonal, higher rungs of the library's
   // ladder if the test refuses it), V = L^-1 K_ZX S^-1/2, B = I + V V^T,
   // alpha = L^-T B^-1 V S^-1/2 y.
-  Matrix Kzz = Covariance(kernel_, hyper_, effects_.get(), inducing, inducing, true);
   internal::Cholesky llt;
-  if (!IsOk(llt.Factorize(Kzz, {internal::JitterLadder::kClimb,
-                                internal::JitterScale::kMeanDiagonal, kInducingRelativeJitter})
-                .status)) {
-    return Status::kNotPositiveDefinite;
-  }
+  if (!FactorizeInducing(inducing, &llt)) return Status::kNotPositiveDefinite;
   // V = L^-1 K_ZX S^-1/2 block by block of training states: B = I + sum_b V_b V_b^T and
   // vy = sum_b V_b S_b^-1/2 y_b. The workers take the blocks a group at a time: each forms,
   // scales and solves one block's columns, then they share B's lower triangle and vy in panels
@@ -374,8 +366,7 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   // for any number of workers, and no worker needs a (p N)^2 scratch of its own.
   Vector ys = Stack(Y);
   for (Eigen::Index r = 0; r < ys.size(); ++r) ys[r] /= noise[r % n];
-  const Eigen::Index pn = Kzz.rows();
-  Kzz = Matrix();  // the factor holds it now
+  const Eigen::Index pn = llt.size();
   const Eigen::Index blocks = (X.rows() + kDtcBlockStates - 1) / kDtcBlockStates;
   const Eigen::Index panels = (pn + kDtcPanelRows - 1) / kDtcPanelRows;
   const int workers =
@@ -432,6 +423,65 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
   log_evidence_ = -0.5 * quad - half_logdet - 0.5 * kLog2Pi * static_cast<double>(ys.size());
   factor_ = llt.ReleaseFactor();
   factor_b_ = llt_b.ReleaseFactor();
+  states_ = inducing;
+  states_t_ = inducing.transpose();
+  SetEffectStates();
+  inputs_ = X;
+  targets_ = Y;
+  dtc_ = true;
+  return Status::kOk;
+}
+
+bool EulerLagrangeGP::FactorizeInducing(const ConstMatrixRef& inducing,
+                                        internal::Cholesky* llt) const {
+  Require(inducing.cols() == input_dim_, "inducing states need " + std::to_string(input_dim_) +
+                                             " columns, got " + std::to_string(inducing.cols()));
+  Require(AllFinite(inducing), "non-finite inducing state");
+  const Matrix Kzz = Covariance(kernel_, hyper_, effects_.get(), inducing, inducing, true);
+  return IsOk(llt->Factorize(Kzz, {internal::JitterLadder::kClimb,
+                                   internal::JitterScale::kMeanDiagonal, kInducingRelativeJitter})
+                  .status);
+}
+
+const Vector& EulerLagrangeGP::dtc_alpha() const {
+  if (!dtc_) throw std::logic_error("EulerLagrangeGP::dtc_alpha: not conditioned through inducing states");
+  return alpha_;
+}
+
+const Matrix& EulerLagrangeGP::dtc_factor_b() const {
+  if (!dtc_) {
+    throw std::logic_error("EulerLagrangeGP::dtc_factor_b: not conditioned through inducing states");
+  }
+  return factor_b_;
+}
+
+Status EulerLagrangeGP::CheckDtcFactors(Eigen::Index pn, const DtcFactors& factors) {
+  if (factors.alpha.size() != pn || factors.factor_b.rows() != pn ||
+      factors.factor_b.cols() != pn || !std::isfinite(factors.log_evidence) ||
+      !AllFinite(factors.alpha)) {
+    return Status::kInvalidInput;
+  }
+  // B = I + V V^T >= I, so every diagonal entry of its Cholesky factor is at least 1 (the
+  // square root of a Schur complement of B, itself >= 1); a little below 1 is rounding.
+  for (Eigen::Index c = 0; c < pn; ++c) {
+    const auto column = factors.factor_b.col(c).tail(pn - c);
+    if (!AllFinite(column) || !(column[0] >= 1.0 - 1e-9)) return Status::kInvalidInput;
+  }
+  return Status::kOk;
+}
+
+Status EulerLagrangeGP::RestoreDtc(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                   const ConstMatrixRef& inducing, DtcFactors factors) {
+  const int n = num_joints();
+  CheckData(X, Y, n, input_dim_);
+  Require(inducing.rows() > 0, "RestoreDtc needs inducing states");
+  if (CheckDtcFactors(inducing.rows() * n, factors) != Status::kOk) return Status::kInvalidInput;
+  internal::Cholesky llt;
+  if (!FactorizeInducing(inducing, &llt)) return Status::kNotPositiveDefinite;
+  alpha_ = std::move(factors.alpha);
+  log_evidence_ = factors.log_evidence;
+  factor_ = llt.ReleaseFactor();
+  factor_b_ = std::move(factors.factor_b);
   states_ = inducing;
   states_t_ = inducing.transpose();
   SetEffectStates();

@@ -183,16 +183,27 @@ GaussianProcess GaussianProcess::EulerLagrange(int num_joints, bool friction,
 GaussianProcess GaussianProcess::EulerLagrangeFromData(
     int num_joints, bool friction, const Hyperparameters& hyper, const BatchFitOptions& batch,
     const ConstMatrixRef& inputs, const ConstMatrixRef& targets, const ConstMatrixRef& inducing,
-    std::shared_ptr<const FeatureMap> effects, const Vector& effect_prior_variance) {
+    std::shared_ptr<const FeatureMap> effects, const Vector& effect_prior_variance,
+    EulerLagrangeGP::DtcFactors* dtc_factors) {
   GaussianProcess gp =
       EulerLagrange(num_joints, friction, hyper, batch, std::move(effects), effect_prior_variance);
   auto model = std::make_unique<EulerLagrangeGP>(*gp.euler_hyper_, gp.euler_effects_);
-  const Status status = model->Condition(inputs, targets, inducing, batch.num_threads);
-  if (status != Status::kOk) {
-    throw std::invalid_argument(
-        std::string("GaussianProcess::EulerLagrangeFromData: the posterior cannot be "
-                    "factorised: ") +
-        ToString(status));
+  if (dtc_factors && inducing.size() > 0) {
+    const Status status = model->RestoreDtc(inputs, targets, inducing, std::move(*dtc_factors));
+    if (status != Status::kOk) {
+      throw std::invalid_argument(
+          std::string("GaussianProcess::EulerLagrangeFromData: the posterior's factors are "
+                      "refused: ") +
+          ToString(status));
+    }
+  } else {
+    const Status status = model->Condition(inputs, targets, inducing, batch.num_threads);
+    if (status != Status::kOk) {
+      throw std::invalid_argument(
+          std::string("GaussianProcess::EulerLagrangeFromData: the posterior cannot be "
+                      "factorised: ") +
+          ToString(status));
+    }
   }
   gp.euler_lagrange_ = std::move(model);
   gp.data_rows_ = inputs.rows();

@@ -418,7 +418,8 @@ RobotModel RobotModel::RestoreState(const RobotModelState& state) {
     RequireFinite("RobotModel::FromState inducing", state.inducing);
     model.gp_ = std::make_unique<GaussianProcess>(GaussianProcess::EulerLagrangeFromData(
         N, state.spec.friction, hyper, state.options.batch, state.inputs, state.targets,
-        state.inducing, model.effect_map_, model.effect_prior_variance_));
+        state.inducing, model.effect_map_, model.effect_prior_variance_,
+        state.euler_lagrange_factors.get()));
     model.hyper_ = hyper;
     return model;
   }

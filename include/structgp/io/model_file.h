@@ -71,10 +71,39 @@ inline constexpr int kOldestModelFileVersion = 1;
 /// std::invalid_argument when the model is not fitted or holds a non-finite value.
 std::string ModelFileText(const RobotModel& model);
 
+/// The posterior file of a model file: `model_path` + ".posterior". A lagk model through
+/// inducing states stores its data and inducing states in the model file, and computing its
+/// posterior from them again takes minutes at 6-7 joints (a pass over every row). Its posterior
+/// file holds what that pass computes (EulerLagrangeGP::DtcFactors: 8 (p N)(p N + 3) / 2
+/// bytes, 125 MB for 800 inducing states of a 7-joint arm), bound to the model file by the
+/// model file's checksum, so that LoadModel reads it instead. It is a cache: a model file
+/// without it loads as before, to the same predictions.
+///
+/// Format (little-endian): the line "structgp posterior file\n", a uint32 version (1), a
+/// uint32 length and the model file's "checksum" text, a uint64 p N, a float64 log p(Y),
+/// alpha (p N float64), the lower triangle of B's factor column by column (float64), and a
+/// uint32 CRC-32 of every byte before it.
+std::string PosteriorFilePath(const std::string& model_path);
+
+/// The bytes of the posterior file of `model` (PosteriorFilePath), bound to the model file
+/// ModelFileText(model) writes; empty when the model has none (every model but lagk through
+/// inducing states). Throws std::invalid_argument as ModelFileText.
+std::string PosteriorFileBytes(const RobotModel& model);
+
+/// How a model file is written.
+struct SaveOptions {
+  /// Write the posterior file too, when the model has one (PosteriorFileBytes). A posterior
+  /// file at PosteriorFilePath(path) that this save does not write is removed (it belonged to
+  /// the file being replaced).
+  bool posterior_file = true;
+};
+
 /// Writes the model file atomically: readers (and a crash) see the old file or the complete
-/// new one. Throws std::invalid_argument as ModelFileText, DataError when the file cannot be
-/// written (the previous file is then left untouched).
-void SaveModel(const std::string& path, const RobotModel& model);
+/// new one. Its posterior file, when written, is written first, atomically too. Throws
+/// std::invalid_argument as ModelFileText, DataError when a file cannot be written (the
+/// previous model file is then left untouched).
+void SaveModel(const std::string& path, const RobotModel& model,
+               const SaveOptions& options = SaveOptions());
 
 /// How a model file is read.
 struct LoadOptions {
@@ -82,6 +111,19 @@ struct LoadOptions {
   /// the posterior (lagk through inducing states: EulerLagrangeGP::Condition); the model's
   /// later batch fits (RobotModelOptions::batch) use them too. >= 1.
   int num_threads = 1;
+  /// LoadModel: read the posterior file (PosteriorFilePath) when the model has one and it is
+  /// there; when it is not used (absent, written for another model file, damaged) the
+  /// posterior is computed from the rows, as without it.
+  bool posterior_file = true;
+};
+
+/// What LoadModel did beyond reading the model file.
+struct LoadSummary {
+  /// The posterior was read from the posterior file.
+  bool posterior_file_read = false;
+  /// Why a posterior file that is there was not read (empty otherwise): "written for another
+  /// model file (...)", "damaged: ...". The posterior was then computed from the rows.
+  std::string posterior_file_note;
 };
 
 /// Reads a model file. `path` only names the source in error messages. Throws DataError
@@ -89,11 +131,14 @@ struct LoadOptions {
 RobotModel ParseModelFile(const std::string& text, const std::string& path,
                           const LoadOptions& options = LoadOptions());
 
-/// Reads a model file written by SaveModel. Throws DataError naming the file and the problem:
-/// it cannot be read, is not JSON (with line and column), is not a structgp model file, has
-/// an unsupported version, fails its checksum, or holds an inconsistent model;
-/// std::invalid_argument when options.num_threads < 1.
-RobotModel LoadModel(const std::string& path, const LoadOptions& options = LoadOptions());
+/// Reads a model file written by SaveModel, and its posterior file when it has one (see
+/// LoadOptions::posterior_file; summary, when not null, says whether it was read and why not).
+/// Throws DataError naming the file and the problem: it cannot be read, is not JSON (with line
+/// and column), is not a structgp model file, has an unsupported version, fails its checksum,
+/// or holds an inconsistent model; std::invalid_argument when options.num_threads < 1. A
+/// posterior file that cannot be used is not an error (summary->posterior_file_note).
+RobotModel LoadModel(const std::string& path, const LoadOptions& options = LoadOptions(),
+                     LoadSummary* summary = nullptr);
 
 /// What a model file says about its model, without rebuilding it: the model and its effects,
 /// the joints, the form it was fitted in and the hyper-parameters (a kernel model's kernel

@@ -36,6 +36,10 @@
 
 namespace structgp {
 
+namespace internal {
+class Cholesky;
+}  // namespace internal
+
 struct EulerLagrangeGPHyperparameters {
   double sigma = 1.0;
   Vector part_weights;  // 2N, >= 0: kinetic 1..N, then potential 1..N (the kernel's parts)
@@ -159,6 +163,35 @@ class EulerLagrangeGP {
                    InducingRule rule = InducingRule::kCoverStates, int num_threads = 1);
   bool conditioned() const { return alpha_.size() > 0; }
 
+  /// What a posterior through inducing states holds beyond its data, inducing states,
+  /// hyper-parameters and effects: alpha (p N), the lower Cholesky factor of B = I + V V^T
+  /// ((p N) x (p N); its upper triangle is not read) and log p(Y). Condition computes them
+  /// from every row (minutes at 6-7 joints); RestoreDtc takes them back.
+  struct DtcFactors {
+    Vector alpha;
+    Matrix factor_b;
+    double log_evidence = 0.0;
+  };
+  /// After a Condition through inducing states: alpha and B's factor as held (no copy).
+  /// Throws std::logic_error otherwise.
+  const Vector& dtc_alpha() const;
+  const Matrix& dtc_factor_b() const;
+  /// kOk when factors fit a posterior of pn = p N inducing torques: the sizes, every entry
+  /// finite (of factor_b's lower triangle), factor_b's diagonal at least 1 (B >= I; 1e-9 below
+  /// for rounding), the evidence finite. kInvalidInput otherwise.
+  static Status CheckDtcFactors(Eigen::Index pn, const DtcFactors& factors);
+  /// The posterior on (X, Y) through `inducing` from the factors of a Condition on the same
+  /// data, inducing states, hyper-parameters and effects (a saved model's): K_ZZ is formed and
+  /// factorised again ((p N)^3 / 3), as Condition does, and the rest is taken as given, so the
+  /// predictions are that Condition's bit for bit without its pass over every row.
+  /// kInvalidInput when CheckDtcFactors refuses the factors, kNotPositiveDefinite when K_ZZ
+  /// cannot be factorised; the model is then unchanged. Factors of other data or
+  /// hyper-parameters are not detected: the caller vouches for them (the model file's
+  /// posterior file, by its checksum). Throws std::invalid_argument as Condition on bad data or
+  /// inducing states.
+  Status RestoreDtc(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                    const ConstMatrixRef& inducing, DtcFactors factors);
+
   /// The states the posterior is held at: the training states (exact) or the inducing states
   /// (DTC); and the data of the last Condition.
   const Matrix& states() const { return states_; }
@@ -201,6 +234,9 @@ class EulerLagrangeGP {
 
  private:
   void SetEffectStates();
+  // K_ZZ + jitter = L L^T, as every posterior through inducing states forms it; false when it
+  // cannot be factorised. Throws std::invalid_argument on bad inducing states.
+  bool FactorizeInducing(const ConstMatrixRef& inducing, internal::Cholesky* llt) const;
 
   EulerLagrangeGPHyperparameters hyper_;
   EulerLagrangeKernel kernel_;

@@ -108,16 +108,16 @@ class GaussianProcess {
                                        std::shared_ptr<const FeatureMap> effects = nullptr,
                                        const Vector& effect_prior_variance = Vector());
   /// The same conditioned on inputs and targets through the given inducing states (empty:
-  /// exactly), without choosing them: how a stored model is restored. Throws
-  /// std::invalid_argument when the sizes do not fit or the posterior cannot be factorised.
-  static GaussianProcess EulerLagrangeFromData(int num_joints, bool friction,
-                                               const Hyperparameters& hyper,
-                                               const BatchFitOptions& batch,
-                                               const ConstMatrixRef& inputs,
-                                               const ConstMatrixRef& targets,
-                                               const ConstMatrixRef& inducing,
-                                               std::shared_ptr<const FeatureMap> effects = nullptr,
-                                               const Vector& effect_prior_variance = Vector());
+  /// exactly), without choosing them: how a stored model is restored. With dtc_factors (and
+  /// inducing states) the posterior's factors are moved in (EulerLagrangeGP::RestoreDtc; the
+  /// pointee is left empty) instead of computed from every row. Throws std::invalid_argument
+  /// when the sizes do not fit, the factors are refused or the posterior cannot be factorised.
+  static GaussianProcess EulerLagrangeFromData(
+      int num_joints, bool friction, const Hyperparameters& hyper, const BatchFitOptions& batch,
+      const ConstMatrixRef& inputs, const ConstMatrixRef& targets, const ConstMatrixRef& inducing,
+      std::shared_ptr<const FeatureMap> effects = nullptr,
+      const Vector& effect_prior_variance = Vector(),
+      EulerLagrangeGP::DtcFactors* dtc_factors = nullptr);
 
   /// A weight-space model with per-output hyper-parameters (hyper.per_output, one entry per
   /// posterior) in the given single-output posteriors, without a fit: how a stored model is

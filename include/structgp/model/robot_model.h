@@ -132,6 +132,11 @@ struct RobotModelState {
   Matrix targets;
   /// kEulerLagrange through inducing states: those states (p x 3N); empty when exact.
   Matrix inducing;
+  /// kEulerLagrange through inducing states: the posterior's factors, when known (a saved
+  /// model's posterior file), so that FromState does not compute them from every row again
+  /// (EulerLagrangeGP::RestoreDtc); null: computed. FromState moves them into the model
+  /// (2 (p N)^2 doubles are not copied), leaving the pointee empty. State() leaves it null.
+  std::shared_ptr<EulerLagrangeGP::DtcFactors> euler_lagrange_factors;
   /// RobotModel::latent_variance_scale(); empty for all 1.
   Vector latent_variance_scale;
 };
