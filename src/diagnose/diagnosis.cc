@@ -546,8 +546,10 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
   if (!model.spec().effects.empty()) out.model += " + " + ToString(model.spec().effects);
 
   // ---- residuals of the model as it is -----------------------------------------------------
+  // On the model's batch threads (RobotModelOptions::batch, LoadOptions::num_threads of a
+  // loaded model): the same predictions bit for bit for any number.
   Matrix mean;
-  model.PredictRows(X.bottomRows(m_log), &mean);
+  model.PredictRows(X.bottomRows(m_log), &mean, nullptr, model.options().batch.num_threads);
   const Matrix R = Y.bottomRows(m_log) - mean;
   Matrix vars(m_log, 3 * N + (t.size() ? 1 : 0));
   vars.leftCols(3 * N) = X.bottomRows(m_log).leftCols(3 * N);
