@@ -14,6 +14,10 @@
 // states through p inducing states (DTC), 1 and 2 workers: time and peak memory, against the
 // (p N) x (m N) cross-covariance that the whole-matrix form held at once (whole_V_MiB).
 //
+// BM_EulerLagrangeRestoreDtc: the same posterior restored from the factors of that Condition
+// (EulerLagrangeGP::RestoreDtc, what loading a model file with its posterior file does: only
+// K_ZZ formed and factorised again), against BM_EulerLagrangeDtc's time.
+//
 // BM_EulerLagrangeEvidence: one evaluation of lagk's evidence and its gradient
 // (EulerLagrangeEvidence::Evaluate, what each step of its hyper-parameter search costs) for a
 // 6-joint arm on m rows (m N values: 400 rows are the CLI's default at six joints, 342 at
@@ -175,6 +179,39 @@ void BM_EulerLagrangeDtc(benchmark::State& state) {
   state.counters["whole_V_MiB"] = static_cast<double>(p * n) * static_cast<double>(m * n) * mib;
 }
 
+// Args: m, p. The data of BM_EulerLagrangeDtc; its Condition runs once, before the timing.
+void BM_EulerLagrangeRestoreDtc(benchmark::State& state) {
+  constexpr int n = 6;
+  const Eigen::Index m = state.range(0), p = state.range(1);
+  std::mt19937_64 rng(12345);
+  std::uniform_real_distribution<double> uniform(-2.0, 2.0);
+  const Matrix X = Matrix::NullaryExpr(m, 3 * n, [&]() { return uniform(rng); });
+  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return uniform(rng); });
+  const Matrix Z = X.topRows(p);
+  EulerLagrangeGPHyperparameters h;
+  h.sigma = 3.0;
+  h.part_weights = Vector::Ones(2 * n);
+  h.noise_std = Vector::Constant(n, 0.1);
+  EulerLagrangeGP conditioned(h);
+  if (conditioned.Condition(X, Y, Z, 2) != Status::kOk) {
+    state.SkipWithError("condition failed");
+    return;
+  }
+  const EulerLagrangeGP::DtcFactors factors{conditioned.dtc_alpha(), conditioned.dtc_factor_b(),
+                                            conditioned.LogMarginalLikelihood()};
+  double extra = 0.0;
+  for (auto _ : state) {
+    EulerLagrangeGP gp(h);
+    EulerLagrangeGP::DtcFactors copy = factors;  // what the posterior file holds, read
+    const bool reset = ResetPeak();
+    const double before = StatusMiB("VmRSS");
+    if (gp.RestoreDtc(X, Y, Z, std::move(copy)) != Status::kOk) state.SkipWithError("restore failed");
+    extra = reset ? StatusMiB("VmHWM") - before : -1.0;
+    benchmark::DoNotOptimize(gp.LogMarginalLikelihood());
+  }
+  state.counters["extra_MiB"] = extra;
+}
+
 // Args: m, threads. Random states and torques of a 6-joint arm (only the cost matters).
 void BM_EulerLagrangeEvidence(benchmark::State& state) {
   constexpr int n = 6;
@@ -210,6 +247,12 @@ BENCHMARK(BM_EulerLagrangeEvidence)
 BENCHMARK(BM_EulerLagrangeDtc)
     ->ArgNames({"m", "p", "workers"})
     ->ArgsProduct({{4000}, {400}, {1, 2}})
+    ->Iterations(1)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EulerLagrangeRestoreDtc)
+    ->ArgNames({"m", "p"})
+    ->Args({4000, 400})
     ->Iterations(1)
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
