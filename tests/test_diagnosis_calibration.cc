@@ -1,7 +1,8 @@
 // The calibration of the diagnosis: Bartlett's factor against Monte Carlo, no suggestion on
 // autocorrelated noise (where white-noise scoring suggests effects), confirmation on unseen
 // trajectories or gapped blocks, the coverage verdict (a model that does not extrapolate is not
-// missing physics), and correlated friction effects chosen together.
+// missing physics), correlated friction effects chosen together, and torques at rest that
+// the state does not determine (stops at the same configuration holding other torques).
 
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include "structgp/diagnose/autocorrelation.h"
 #include "structgp/diagnose/diagnosis.h"
 #include "structgp/diagnose/diagnosis_report.h"
+#include "structgp/diagnose/holding_torque.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/model/robot_model.h"
 #include "structgp/sim/hidden_effect.h"
@@ -802,6 +804,172 @@ TEST(Calibration, CorrelatedFrictionEffectsTogetherMatchTheTrueOnes) {
               "%.4f; from the log alone (%s) %.4f\n", none, found, best, names.c_str(),
               test_rms(from_log));
   EXPECT_LT(found, 1.2 * best);
+}
+
+// ---- torques at rest that the state does not determine (diagnose/holding_torque.h) ----------
+
+Vector V2(double a, double b) {
+  Vector v(2);
+  v << a, b;
+  return v;
+}
+
+// A two-joint log by hand: stops (every qd zero) and moves (qd 0.5 on joint 1); the residual
+// is the given offset per stop plus white noise of 0.01.
+struct RestLog {
+  Matrix X;  // q, qd, qdd
+  Matrix R;
+};
+RestLog MakeRestLog(const std::vector<std::pair<Vector, Vector>>& stops, int rows_per_stop,
+                    unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  const int n = 2, move = 40;
+  const int m = static_cast<int>(stops.size()) * (rows_per_stop + move);
+  RestLog log{Matrix::Zero(m, 3 * n), Matrix::Zero(m, n)};
+  int row = 0;
+  for (const auto& [pose, offset] : stops) {
+    for (int i = 0; i < rows_per_stop; ++i, ++row) {
+      log.X.row(row).head(n) = pose.transpose();
+      for (int j = 0; j < n; ++j) log.R(row, j) = offset[j] + noise(rng);
+    }
+    for (int i = 0; i < move; ++i, ++row) {
+      log.X.row(row).head(n) = pose.transpose();
+      log.X(row, n) = 0.5;  // joint 1 moves: not at rest
+      for (int j = 0; j < n; ++j) log.R(row, j) = noise(rng);
+    }
+  }
+  return log;
+}
+
+TEST(HoldingTorque, StopsAtTheSameConfigurationWithOtherTorquesAreFound) {
+  const Vector home = V2(0.3, -1.5), near = V2(0.31, -1.49), away = V2(1.2, 0.4);
+  // Joint 1 holds +2 at one stop at home and -2 at the next (4, 400 times the noise); joint 2
+  // holds the same at both. The stop away from home holds much more, but pairs with none.
+  const RestLog log = MakeRestLog({{home, V2(2.0, 0.5)},
+                                   {away, V2(50.0, 50.0)},
+                                   {near, V2(-2.0, 0.5)}},
+                                  100, 1);
+  const HoldingTorqueFinding f = FindHoldingTorques(log.X, log.R);
+  ASSERT_EQ(f.stretches.size(), 3u);
+  EXPECT_EQ(f.stretches[0].begin, 0);
+  EXPECT_EQ(f.stretches[0].end, 100);
+  EXPECT_EQ(f.stretches[1].begin, 140);
+  EXPECT_EQ(f.num_pairs, 1);
+  ASSERT_EQ(f.joints.size(), 1u);
+  const HoldingTorqueJoint& h = f.joints[0];
+  EXPECT_EQ(h.joint, 1);
+  EXPECT_EQ(h.stretch_a, 0);
+  EXPECT_EQ(h.stretch_b, 2);
+  EXPECT_NEAR(h.difference, 4.0, 0.01);
+  EXPECT_NEAR(h.noise, 0.01, 0.002);
+  EXPECT_NE(f.message.find("rows 0-99 and 280-379"), std::string::npos) << f.message;
+  EXPECT_NE(f.message.find("joint 1 by 4"), std::string::npos) << f.message;
+  // The configurations 0.01 rad apart are not the same at a tolerance of 0.005.
+  HoldingTorqueOptions tight;
+  tight.pose_tolerance = 0.005;
+  EXPECT_EQ(FindHoldingTorques(log.X, log.R, {}, tight).num_pairs, 0);
+}
+
+TEST(HoldingTorque, TheSameTorqueAtEveryStopOrNoPairGivesNothing) {
+  const Vector home = V2(0.3, -1.5), away = V2(1.2, 0.4);
+  // The same torque at both stops at home (noise only): no finding.
+  const RestLog same = MakeRestLog({{home, V2(2.0, 0.5)}, {home, V2(2.0, 0.5)}}, 100, 2);
+  const HoldingTorqueFinding f = FindHoldingTorques(same.X, same.R);
+  EXPECT_EQ(f.num_pairs, 1);
+  EXPECT_TRUE(f.joints.empty());
+  EXPECT_EQ(f.message, "");
+  // Different torques at different configurations (what gravity does): no pair, no finding.
+  const RestLog apart = MakeRestLog({{home, V2(2.0, 0.5)}, {away, V2(-2.0, 0.5)}}, 100, 3);
+  EXPECT_EQ(FindHoldingTorques(apart.X, apart.R).num_pairs, 0);
+  EXPECT_TRUE(FindHoldingTorques(apart.X, apart.R).joints.empty());
+  // Stops shorter than min_rest_rows are not stretches.
+  const RestLog brief = MakeRestLog({{home, V2(2.0, 0.5)}, {home, V2(-2.0, 0.5)}}, 30, 4);
+  EXPECT_TRUE(FindHoldingTorques(brief.X, brief.R).stretches.empty());
+}
+
+TEST(HoldingTorque, AStretchEndsWhereATrajectoryStartsAndBadInputIsRefused) {
+  const Vector home = V2(0.3, -1.5);
+  RestLog log = MakeRestLog({{home, V2(2.0, 0.5)}}, 120, 5);
+  // A new trajectory at row 60 cuts the stop in two stretches of 60 rows, which pair.
+  const HoldingTorqueFinding f = FindHoldingTorques(log.X, log.R, {0, 60});
+  ASSERT_EQ(f.stretches.size(), 2u);
+  EXPECT_EQ(f.stretches[0].end, 60);
+  EXPECT_EQ(f.stretches[1].begin, 60);
+  EXPECT_EQ(f.num_pairs, 1);
+  EXPECT_THROW(FindHoldingTorques(log.X, log.R, {60, 0}), std::invalid_argument);
+  EXPECT_THROW(FindHoldingTorques(log.X, log.R, {0, 1000}), std::invalid_argument);
+  EXPECT_THROW(FindHoldingTorques(log.X.topRows(10), log.R), std::invalid_argument);
+  EXPECT_THROW(FindHoldingTorques(log.X.leftCols(3), log.R), std::invalid_argument);
+  HoldingTorqueOptions bad;
+  bad.min_rest_rows = 1;
+  EXPECT_THROW(FindHoldingTorques(log.X, log.R, {}, bad), std::invalid_argument);
+  log.R(5, 1) = std::nan("");
+  EXPECT_THROW(FindHoldingTorques(log.X, log.R), std::invalid_argument);
+}
+
+// The diagnosis names torques at rest that the state does not determine: the clean two-link
+// test log with two stops appended at the same configuration (100 rows each, a stretch of the
+// log's own motion between them), holding the model's torque at that state plus 0.3 and minus
+// 0.3 on joint 1 (60 times the noise apart). The finding is in FINDINGS.json and the text
+// report, and no effect is suggested for it; with both stops at the model's torque, nothing.
+TEST(HoldingTorque, TheDiagnosisNamesStopsThatHoldOtherTorques) {
+  auto scenario = Clean(HiddenEffect::kNone, 1, 0.0, 10.0);
+  AddWhiteNoise(0.01, 7, &scenario.train);
+  AddWhiteNoise(0.01, 8, &scenario.test);
+  const RobotModel model = Fit(ParseModelSpec("pol"), scenario.train);
+  const sim::Dataset& test = scenario.test;
+  const Eigen::Index m = test.X.rows(), stop = 100, moving = 100, middle = m / 2;
+  Vector rest_state = Vector::Zero(test.X.cols());
+  rest_state.head(2) = test.X.row(middle).head(2).transpose();
+  Vector held(2);
+  ASSERT_EQ(model.Predict(rest_state, held), Status::kOk);
+  auto with_stops = [&](double offset) {
+    sim::Dataset d;
+    const Eigen::Index total = m + 2 * stop + moving;
+    d.X.resize(total, test.X.cols());
+    d.Y.resize(total, 2);
+    d.t.resize(total);
+    d.X.topRows(m) = test.X;
+    d.Y.topRows(m) = test.Y;
+    d.t.head(m) = test.t;
+    const double dt = test.t[1] - test.t[0];
+    std::mt19937_64 rng(9);
+    std::normal_distribution<double> noise(0.0, 0.01);
+    Eigen::Index row = m;
+    for (int k = 0; k < 2; ++k) {
+      for (Eigen::Index i = 0; i < stop; ++i, ++row) {
+        d.X.row(row) = rest_state.transpose();
+        d.Y(row, 0) = held[0] + (k == 0 ? offset : -offset) + noise(rng);
+        d.Y(row, 1) = held[1] + noise(rng);
+      }
+      if (k == 0) {
+        d.X.middleRows(row, moving) = test.X.middleRows(middle, moving);
+        d.Y.middleRows(row, moving) = test.Y.middleRows(middle, moving);
+        row += moving;
+      }
+    }
+    for (Eigen::Index i = m; i < total; ++i) d.t[i] = d.t[i - 1] + dt;
+    return d;
+  };
+  const sim::Dataset stops = with_stops(0.3);
+  const Diagnosis d = Diagnose(model, stops.X, stops.Y, stops.t);
+  ASSERT_EQ(d.status, DiagnosisStatus::kOk) << d.message;
+  EXPECT_EQ(d.holding.num_pairs, 1);
+  ASSERT_EQ(d.holding.joints.size(), 1u) << ToJson(d);
+  EXPECT_EQ(d.holding.joints[0].joint, 1);
+  EXPECT_NEAR(d.holding.joints[0].difference, 0.6, 0.01);
+  EXPECT_TRUE(d.suggestions.empty()) << ToJson(d);
+  const nlohmann::json json = nlohmann::json::parse(ToJson(d));
+  EXPECT_EQ(json["holding_torque"]["joints"][0]["joint"], 1);
+  EXPECT_EQ(json["holding_torque"]["stretches"].size(), 2u);
+  EXPECT_NE(DiagnosisReport(d, model.spec(), DiagnosisOptions()).find("at rest: At rest at the same configuration"),
+            std::string::npos);
+  const sim::Dataset same = with_stops(0.0);
+  const Diagnosis quiet = Diagnose(model, same.X, same.Y, same.t);
+  EXPECT_EQ(quiet.holding.num_pairs, 1);
+  EXPECT_TRUE(quiet.holding.joints.empty()) << quiet.holding.message;
+  EXPECT_EQ(quiet.holding.message, "");
 }
 
 }  // namespace

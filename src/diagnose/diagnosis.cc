@@ -301,6 +301,8 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
     if (error != nullptr) *error = "DiagnosisOptions::" + message;
     return false;
   };
+  std::string holding_error;
+  if (!holding.IsValid(&holding_error)) return fail("holding." + holding_error);
   auto number = [](double v) {
     std::ostringstream os;
     os << v;
@@ -1506,6 +1508,31 @@ const char* ToString(Verdict verdict) {
   return "unknown";
 }
 
+namespace {
+
+// FindHoldingTorques on the model's residual at the rows at rest (only those are predicted:
+// the training rows of a lagk model are minutes of predictions; the others are not read).
+HoldingTorqueFinding HoldingTorques(const RobotModel& model, const ConstMatrixRef& X,
+                                    const ConstMatrixRef& Y, const std::vector<int>& starts,
+                                    const HoldingTorqueOptions& options) {
+  const int N = model.num_joints();
+  std::vector<int> rest;
+  for (int i = 0; i < X.rows(); ++i) {
+    if ((X.row(i).segment(N, N).array().abs() < options.rest_velocity).all()) rest.push_back(i);
+  }
+  Matrix R = Matrix::Zero(X.rows(), N);
+  if (!rest.empty()) {
+    Matrix mean;
+    model.PredictRows(SelectRows(X, rest), &mean, nullptr, model.options().batch.num_threads);
+    for (size_t k = 0; k < rest.size(); ++k) {
+      R.row(rest[k]) = Y.row(rest[k]) - mean.row(static_cast<Eigen::Index>(k));
+    }
+  }
+  return FindHoldingTorques(X, R, starts, options);
+}
+
+}  // namespace
+
 Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const ConstMatrixRef& Y,
                    const Vector& t, const DiagnosisOptions& options) {
   const int N = model.num_joints();
@@ -1591,6 +1618,7 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
         MeasureCoverage(X, t, options.training_inputs, N, &out);
       }
       Conclude(options, &out);
+      out.holding = HoldingTorques(model, Xs, Ys, starts, options.holding);
     }
     return out;
   } catch (const std::invalid_argument&) {
@@ -1715,6 +1743,30 @@ std::string ToJson(const Diagnosis& d) {
     }
   }
   j["coverage"] = c;
+  nlohmann::ordered_json h;
+  h["message"] = d.holding.message;
+  h["stretches"] = nlohmann::ordered_json::array();
+  for (const RestStretch& r : d.holding.stretches) {
+    nlohmann::ordered_json jr;
+    jr["begin"] = r.begin;
+    jr["end"] = r.end;
+    jr["pose"] = std::vector<double>(r.pose.data(), r.pose.data() + r.pose.size());
+    jr["mean_residual"] = std::vector<double>(r.mean_residual.data(),
+                                              r.mean_residual.data() + r.mean_residual.size());
+    h["stretches"].push_back(jr);
+  }
+  h["pairs"] = d.holding.num_pairs;
+  h["joints"] = nlohmann::ordered_json::array();
+  for (const HoldingTorqueJoint& hj : d.holding.joints) {
+    nlohmann::ordered_json jj;
+    jj["joint"] = hj.joint;
+    jj["difference"] = hj.difference;
+    jj["noise"] = hj.noise;
+    jj["stretch_a"] = hj.stretch_a;
+    jj["stretch_b"] = hj.stretch_b;
+    h["joints"].push_back(jj);
+  }
+  j["holding_torque"] = h;
   return j.dump(2) + "\n";
 }
 

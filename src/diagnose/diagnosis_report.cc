@@ -83,6 +83,7 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
   }
   os << Table(rows);
   os << "verdict: " << ToString(d.coverage.verdict) << ": " << d.coverage.message << "\n";
+  if (!d.holding.message.empty()) os << "at rest: " << d.holding.message << "\n";
   if (d.suggestions.empty()) {
     os << Format(
         "no missing effect found: no candidate gains %.0f nats of evidence after the "

@@ -50,6 +50,7 @@
 #include <vector>
 
 #include "structgp/core/types.h"
+#include "structgp/diagnose/holding_torque.h"
 #include "structgp/feature/effect_parameter.h"
 #include "structgp/model/robot_model.h"
 
@@ -144,6 +145,9 @@ struct DiagnosisOptions {
   /// scored against this many Nystrom features of the model's kernel (at most half the rows),
   /// inducing states chosen among the rows by greedy residual variance.
   int nystrom_features = 512;
+  /// Torques at rest that the state does not determine (Diagnosis::holding): the still
+  /// stretches of the log and of the training rows, when given, each a trajectory of its own.
+  HoldingTorqueOptions holding;
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
   /// null).
@@ -357,6 +361,9 @@ struct Diagnosis {
   /// noise_std times the joint's output scale).
   double noise_std = 0;
   CoverageFinding coverage;
+  /// Stops at the same configuration that hold other torques (static friction): error no
+  /// model of the state and no candidate effect explains (FINDINGS.json "holding_torque").
+  HoldingTorqueFinding holding;
 };
 
 /// Diagnoses a fitted model on data X (m x model.input_dim()),
