@@ -863,7 +863,7 @@ TEST(HoldingTorque, StopsAtTheSameConfigurationWithOtherTorquesAreFound) {
   EXPECT_EQ(h.stretch_b, 2);
   EXPECT_NEAR(h.difference, 4.0, 0.01);
   EXPECT_NEAR(h.noise, 0.01, 0.002);
-  EXPECT_NE(f.message.find("rows 0-99 and 280-379"), std::string::npos) << f.message;
+  EXPECT_NE(f.message.find("(rows 0-99 and rows 280-379)"), std::string::npos) << f.message;
   EXPECT_NE(f.message.find("joint 1 by 4"), std::string::npos) << f.message;
   // The configurations 0.01 rad apart are not the same at a tolerance of 0.005.
   HoldingTorqueOptions tight;
@@ -963,8 +963,22 @@ TEST(HoldingTorque, TheDiagnosisNamesStopsThatHoldOtherTorques) {
   const nlohmann::json json = nlohmann::json::parse(ToJson(d));
   EXPECT_EQ(json["holding_torque"]["joints"][0]["joint"], 1);
   EXPECT_EQ(json["holding_torque"]["stretches"].size(), 2u);
-  EXPECT_NE(DiagnosisReport(d, model.spec(), DiagnosisOptions()).find("at rest: At rest at the same configuration"),
+  EXPECT_NE(DiagnosisReport(d, model.spec(), DiagnosisOptions())
+                .find("at rest: At rest at the same configuration"),
             std::string::npos);
+  // With the training rows first, the stops are named as rows of the log.
+  DiagnosisOptions with_training;
+  with_training.training_inputs = scenario.train.X;
+  with_training.training_targets = scenario.train.Y;
+  with_training.training_times = scenario.train.t;
+  const Diagnosis trained = Diagnose(model, stops.X, stops.Y, stops.t, with_training);
+  ASSERT_EQ(trained.holding.joints.size(), 1u) << ToJson(trained);
+  const std::string first_stop = std::to_string(m) + "-" + std::to_string(m + stop - 1);
+  EXPECT_NE(trained.holding.message.find("(rows of the log " + first_stop + " and rows of the log"),
+            std::string::npos)
+      << trained.holding.message;
+  const HoldingTorqueFinding& h = trained.holding;
+  EXPECT_NE(HoldingTorqueMessage(h, 1 << 30).find("(training rows"), std::string::npos);
   const sim::Dataset same = with_stops(0.0);
   const Diagnosis quiet = Diagnose(model, same.X, same.Y, same.t);
   EXPECT_EQ(quiet.holding.num_pairs, 1);

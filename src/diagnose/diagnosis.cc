@@ -1619,6 +1619,7 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
       }
       Conclude(options, &out);
       out.holding = HoldingTorques(model, Xs, Ys, starts, options.holding);
+      out.holding.message = HoldingTorqueMessage(out.holding, log_begin);
     }
     return out;
   } catch (const std::invalid_argument&) {

@@ -146,25 +146,32 @@ HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatr
                    [&](const HoldingTorqueJoint& x, const HoldingTorqueJoint& y) {
                      return ratio(x) > ratio(y);
                    });
-  if (!out.joints.empty()) {
-    std::string list;
-    for (size_t k = 0; k < out.joints.size(); ++k) {
-      const HoldingTorqueJoint& h = out.joints[k];
-      if (k > 0) list += k + 1 == out.joints.size() ? " and " : ", ";
-      list += "joint " + std::to_string(h.joint) + " by " + Format("%.3g", h.difference) +
-              " (" + Format("%.3g", h.difference / std::max(h.noise, 1e-300)) +
-              " times its noise at rest)";
-    }
-    const RestStretch& a = out.stretches[static_cast<size_t>(out.joints.front().stretch_a)];
-    const RestStretch& b = out.stretches[static_cast<size_t>(out.joints.front().stretch_b)];
-    out.message = "At rest at the same configuration, the torque differs between stops (rows " +
-                  std::to_string(a.begin) + "-" + std::to_string(a.end - 1) + " and " +
-                  std::to_string(b.begin) + "-" + std::to_string(b.end - 1) + "): " + list +
-                  ". Static friction holds what the motion before a stop left (or the load "
-                  "differs between the stops); no model of the state predicts it, and no "
-                  "effect is suggested for it.";
-  }
+  out.message = HoldingTorqueMessage(out);
   return out;
+}
+
+std::string HoldingTorqueMessage(const HoldingTorqueFinding& finding, int log_begin) {
+  if (finding.joints.empty()) return std::string();
+  std::string list;
+  for (size_t k = 0; k < finding.joints.size(); ++k) {
+    const HoldingTorqueJoint& h = finding.joints[k];
+    if (k > 0) list += k + 1 == finding.joints.size() ? " and " : ", ";
+    list += "joint " + std::to_string(h.joint) + " by " + Format("%.3g", h.difference) + " (" +
+            Format("%.3g", h.difference / std::max(h.noise, 1e-300)) + " times its noise at rest)";
+  }
+  auto rows = [&](const RestStretch& s) {
+    const bool training = s.begin < log_begin;
+    const int offset = training ? 0 : log_begin;
+    return std::string(training ? "training rows " : log_begin > 0 ? "rows of the log " : "rows ") +
+           std::to_string(s.begin - offset) + "-" + std::to_string(s.end - 1 - offset);
+  };
+  const HoldingTorqueJoint& first = finding.joints.front();
+  return "At rest at the same configuration, the torque differs between stops (" +
+         rows(finding.stretches.at(static_cast<size_t>(first.stretch_a))) + " and " +
+         rows(finding.stretches.at(static_cast<size_t>(first.stretch_b))) + "): " + list +
+         ". Static friction holds what the motion before a stop left (or the load differs "
+         "between the stops); no model of the state predicts it, and no effect is suggested "
+         "for it.";
 }
 
 }  // namespace structgp

@@ -76,6 +76,11 @@ HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatr
                                         const std::vector<int>& segment_starts = {},
                                         const HoldingTorqueOptions& options = {});
 
+/// The finding's message (empty without joints). Rows before log_begin are named as training
+/// rows, the others as rows of the log counted from log_begin: how Diagnose words a finding on
+/// the training rows followed by the log (FindHoldingTorques: log_begin 0, "rows B-E").
+std::string HoldingTorqueMessage(const HoldingTorqueFinding& finding, int log_begin = 0);
+
 }  // namespace structgp
 
 #endif  // STRUCTGP_DIAGNOSE_HOLDING_TORQUE_H_
