@@ -224,7 +224,8 @@ TEST(LagkModel, PosteriorFileGivesTheSamePosteriorWithoutThePassOverTheRows) {
   // Header, log p(Y), alpha, the factor's lower triangle, CRC-32.
   const size_t header = 24 + 4 + 4 + checksum.size() + 8;
   EXPECT_EQ(bytes.size(),
-            header + 8 * (1 + static_cast<size_t>(pn) + static_cast<size_t>(pn * (pn + 1) / 2)) + 4);
+            header + 8 * (1 + static_cast<size_t>(pn) + static_cast<size_t>(pn * (pn + 1) / 2)) +
+                4);
   EXPECT_EQ(bytes, PosteriorFileBytes(fit.model));
 
   struct Loaded {

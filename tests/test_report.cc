@@ -773,7 +773,16 @@ TEST(Report, ShowsTheVerdictFirstWithItsMessage) {
       EXPECT_NE(Section(html, "suggestions").find("the error is coverage, not a missing effect"),
                 std::string::npos);
     }
+    // No torque held at rest: no line for it.
+    EXPECT_EQ(section.find("At rest:"), std::string::npos);
   }
+  // Stops at one configuration that hold other torques: under the verdict, escaped.
+  ReportData held = MakeReport(2, 100, false);
+  held.diagnosis.holding.message = std::string("stops differ ") + kHostileFile;
+  EXPECT_NE(Section(RenderHtml(held), "verdict")
+                .find("<p class=\"holding-torque\"><b>At rest:</b> stops differ "
+                      "&lt;x&gt;&amp;&quot;</p>"),
+            std::string::npos);
   // A failed diagnosis says so, with its message.
   ReportData failed = MakeReport(1, 50, false);
   failed.diagnosis.status = DiagnosisStatus::kNumericalFailure;

@@ -634,7 +634,8 @@ std::shared_ptr<EulerLagrangeGP::DtcFactors> ReadPosteriorFile(
   bool complete = read(&factors->log_evidence, sizeof(double)) &&
                   read(factors->alpha.data(), static_cast<size_t>(pn) * sizeof(double));
   for (Eigen::Index c = 0; complete && c < pn; ++c) {
-    complete = read(factors->factor_b.col(c).data() + c, static_cast<size_t>(pn - c) * sizeof(double));
+    complete = read(factors->factor_b.col(c).data() + c,
+                    static_cast<size_t>(pn - c) * sizeof(double));
   }
   const uLong computed = crc;
   uint32_t stored_crc = 0;

@@ -444,13 +444,16 @@ bool EulerLagrangeGP::FactorizeInducing(const ConstMatrixRef& inducing,
 }
 
 const Vector& EulerLagrangeGP::dtc_alpha() const {
-  if (!dtc_) throw std::logic_error("EulerLagrangeGP::dtc_alpha: not conditioned through inducing states");
+  if (!dtc_) {
+    throw std::logic_error("EulerLagrangeGP::dtc_alpha: not conditioned through inducing states");
+  }
   return alpha_;
 }
 
 const Matrix& EulerLagrangeGP::dtc_factor_b() const {
   if (!dtc_) {
-    throw std::logic_error("EulerLagrangeGP::dtc_factor_b: not conditioned through inducing states");
+    throw std::logic_error(
+        "EulerLagrangeGP::dtc_factor_b: not conditioned through inducing states");
   }
   return factor_b_;
 }

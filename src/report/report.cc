@@ -639,6 +639,10 @@ void AppendVerdict(const ReportData& data, std::string* html) {
            "\"><b>" + headline + "</b>";
   if (!c.message.empty()) *html += "<br><span class=\"message\">" + Escape(c.message) + "</span>";
   *html += "</p>\n";
+  if (!d.holding.message.empty()) {
+    *html += "<p class=\"holding-torque\"><b>At rest:</b> " + Escape(d.holding.message) +
+             "</p>\n";
+  }
   if (c.distance.size() != 0) {
     *html +=
         "<p><a href=\"#coverage\">Where the log leaves the training states</a>: distance to "
