@@ -151,20 +151,32 @@ void BM_Statistics(benchmark::State& state) {
   }
 }
 
-// Args: m, p, workers. Random states and torques of a 6-joint arm (only the cost matters).
+// Random states and torques of a 6-joint arm on m rows, the first p the inducing states, and
+// the hyper-parameters of the DTC benchmarks (only the cost matters).
+struct DtcProblem {
+  static constexpr int n = 6;
+  Matrix X, Y, Z;
+  EulerLagrangeGPHyperparameters h;
+  DtcProblem(Eigen::Index m, Eigen::Index p) {
+    std::mt19937_64 rng(12345);
+    std::uniform_real_distribution<double> uniform(-2.0, 2.0);
+    X = Matrix::NullaryExpr(m, 3 * n, [&]() { return uniform(rng); });
+    Y = Matrix::NullaryExpr(m, n, [&]() { return uniform(rng); });
+    Z = X.topRows(p);
+    h.sigma = 3.0;
+    h.part_weights = Vector::Ones(2 * n);
+    h.noise_std = Vector::Constant(n, 0.1);
+  }
+};
+
+// Args: m, p, workers.
 void BM_EulerLagrangeDtc(benchmark::State& state) {
-  constexpr int n = 6;
   const Eigen::Index m = state.range(0), p = state.range(1);
   const int workers = static_cast<int>(state.range(2));
-  std::mt19937_64 rng(12345);
-  std::uniform_real_distribution<double> uniform(-2.0, 2.0);
-  const Matrix X = Matrix::NullaryExpr(m, 3 * n, [&]() { return uniform(rng); });
-  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return uniform(rng); });
-  const Matrix Z = X.topRows(p);
-  EulerLagrangeGPHyperparameters h;
-  h.sigma = 3.0;
-  h.part_weights = Vector::Ones(2 * n);
-  h.noise_std = Vector::Constant(n, 0.1);
+  const DtcProblem problem(m, p);
+  const int n = DtcProblem::n;
+  const Matrix &X = problem.X, &Y = problem.Y, &Z = problem.Z;
+  const EulerLagrangeGPHyperparameters& h = problem.h;
   double extra = 0.0;
   for (auto _ : state) {
     EulerLagrangeGP gp(h);
@@ -181,17 +193,9 @@ void BM_EulerLagrangeDtc(benchmark::State& state) {
 
 // Args: m, p. The data of BM_EulerLagrangeDtc; its Condition runs once, before the timing.
 void BM_EulerLagrangeRestoreDtc(benchmark::State& state) {
-  constexpr int n = 6;
-  const Eigen::Index m = state.range(0), p = state.range(1);
-  std::mt19937_64 rng(12345);
-  std::uniform_real_distribution<double> uniform(-2.0, 2.0);
-  const Matrix X = Matrix::NullaryExpr(m, 3 * n, [&]() { return uniform(rng); });
-  const Matrix Y = Matrix::NullaryExpr(m, n, [&]() { return uniform(rng); });
-  const Matrix Z = X.topRows(p);
-  EulerLagrangeGPHyperparameters h;
-  h.sigma = 3.0;
-  h.part_weights = Vector::Ones(2 * n);
-  h.noise_std = Vector::Constant(n, 0.1);
+  const DtcProblem problem(state.range(0), state.range(1));
+  const Matrix &X = problem.X, &Y = problem.Y, &Z = problem.Z;
+  const EulerLagrangeGPHyperparameters& h = problem.h;
   EulerLagrangeGP conditioned(h);
   if (conditioned.Condition(X, Y, Z, 2) != Status::kOk) {
     state.SkipWithError("condition failed");
