@@ -341,16 +341,9 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     Vector alpha = llt.solve(y);
     double half_logdet = 0.0;
     for (Eigen::Index r = 0; r < llt.size(); ++r) half_logdet += std::log(llt.factor()(r, r));
-    log_evidence_ = -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
-    factor_ = llt.ReleaseFactor();
-    factor_b_.resize(0, 0);
-    alpha_ = std::move(alpha);
-    states_ = X;
-    states_t_ = X.transpose();
-    SetEffectStates();
-    inputs_ = X;
-    targets_ = Y;
-    dtc_ = false;
+    const double log_evidence =
+        -0.5 * y.dot(alpha) - half_logdet - 0.5 * kLog2Pi * static_cast<double>(y.size());
+    Adopt(llt.ReleaseFactor(), Matrix(), std::move(alpha), log_evidence, X, X, Y);
     return Status::kOk;
   }
   // K_ZZ + J = L L^T (J: a jitter of 1e-8 of the mean diagonal, higher rungs of the library's
@@ -413,22 +406,17 @@ Status EulerLagrangeGP::Condition(const ConstMatrixRef& X, const ConstMatrixRef&
     return Status::kNotPositiveDefinite;
   }
   B = Matrix();
-  alpha_ = llt.matrixU().solve(llt_b.solve(vy));
+  Vector alpha = llt.matrixU().solve(llt_b.solve(vy));
   // log N(y; 0, Q + S), Q = K_XZ K_ZZ^-1 K_ZX: |Q + S| = |S| |B| and
   // y^T (Q + S)^-1 y = |S^-1/2 y|^2 - |L_B^-1 V S^-1/2 y|^2.
   double half_logdet = 0.0;
   for (Eigen::Index r = 0; r < llt_b.size(); ++r) half_logdet += std::log(llt_b.factor()(r, r));
   for (Eigen::Index r = 0; r < ys.size(); ++r) half_logdet += std::log(noise[r % n]);
   const double quad = ys.squaredNorm() - llt_b.matrixL().solve(vy).squaredNorm();
-  log_evidence_ = -0.5 * quad - half_logdet - 0.5 * kLog2Pi * static_cast<double>(ys.size());
-  factor_ = llt.ReleaseFactor();
-  factor_b_ = llt_b.ReleaseFactor();
-  states_ = inducing;
-  states_t_ = inducing.transpose();
-  SetEffectStates();
-  inputs_ = X;
-  targets_ = Y;
-  dtc_ = true;
+  const double log_evidence =
+      -0.5 * quad - half_logdet - 0.5 * kLog2Pi * static_cast<double>(ys.size());
+  Adopt(llt.ReleaseFactor(), llt_b.ReleaseFactor(), std::move(alpha), log_evidence, inducing, X,
+        Y);
   return Status::kOk;
 }
 
@@ -481,17 +469,24 @@ Status EulerLagrangeGP::RestoreDtc(const ConstMatrixRef& X, const ConstMatrixRef
   if (CheckDtcFactors(inducing.rows() * n, factors) != Status::kOk) return Status::kInvalidInput;
   internal::Cholesky llt;
   if (!FactorizeInducing(inducing, &llt)) return Status::kNotPositiveDefinite;
-  alpha_ = std::move(factors.alpha);
-  log_evidence_ = factors.log_evidence;
-  factor_ = llt.ReleaseFactor();
-  factor_b_ = std::move(factors.factor_b);
-  states_ = inducing;
-  states_t_ = inducing.transpose();
+  Adopt(llt.ReleaseFactor(), std::move(factors.factor_b), std::move(factors.alpha),
+        factors.log_evidence, inducing, X, Y);
+  return Status::kOk;
+}
+
+void EulerLagrangeGP::Adopt(Matrix factor, Matrix factor_b, Vector alpha, double log_evidence,
+                            const ConstMatrixRef& states, const ConstMatrixRef& X,
+                            const ConstMatrixRef& Y) {
+  factor_ = std::move(factor);
+  factor_b_ = std::move(factor_b);
+  alpha_ = std::move(alpha);
+  log_evidence_ = log_evidence;
+  dtc_ = factor_b_.size() > 0;
+  states_ = states;
+  states_t_ = states.transpose();
   SetEffectStates();
   inputs_ = X;
   targets_ = Y;
-  dtc_ = true;
-  return Status::kOk;
 }
 
 void EulerLagrangeGP::SetEffectStates() {

@@ -234,6 +234,10 @@ class EulerLagrangeGP {
 
  private:
   void SetEffectStates();
+  // The posterior of a Condition or RestoreDtc: its factors (factor_b empty: exact), alpha and
+  // evidence, at `states` (the training states, or the inducing states), conditioned on (X, Y).
+  void Adopt(Matrix factor, Matrix factor_b, Vector alpha, double log_evidence,
+             const ConstMatrixRef& states, const ConstMatrixRef& X, const ConstMatrixRef& Y);
   // K_ZZ + jitter = L L^T, as every posterior through inducing states forms it; false when it
   // cannot be factorised. Throws std::invalid_argument on bad inducing states.
   bool FactorizeInducing(const ConstMatrixRef& inducing, internal::Cholesky* llt) const;
