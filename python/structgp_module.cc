@@ -704,6 +704,17 @@ void BindDiagnosis(py::module_& m) {
       .def_property_readonly("coverage_joints", [](const DiagnosisResult& d) { return d.diagnosis.coverage.coverage_joints; })
       .def_property_readonly("unexplained_joints", [](const DiagnosisResult& d) { return d.diagnosis.coverage.unexplained_joints; },
                              "joints the model, refitted on the log with the suggestions, still does not predict to the noise")
+      .def_property_readonly(
+          "holding_torque_message", [](const DiagnosisResult& d) { return d.diagnosis.holding.message; },
+          "Stops at one configuration that hold other torques (static friction), or ''")
+      .def_property_readonly(
+          "holding_torque_joints",
+          [](const DiagnosisResult& d) {
+            std::vector<int> joints;
+            for (const HoldingTorqueJoint& h : d.diagnosis.holding.joints) joints.push_back(h.joint);
+            return joints;
+          },
+          "joints (1-based) whose torque at rest differs between such stops")
       .def_property_readonly("suggested_model",
                              [](const DiagnosisResult& d) { return ModelLabel(WithSuggestions(d.spec, d.diagnosis)); },
                              "The diagnosed model with every suggestion added, as Model() reads it")

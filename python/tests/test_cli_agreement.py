@@ -149,6 +149,9 @@ def test_the_diagnosis_has_the_content_of_findings_json(cli, demo, tmp_path):
     assert (diagnosis.verdict, diagnosis.verdict_message) == \
         (expected["coverage"]["verdict"], expected["coverage"]["message"])
     assert diagnosis.unexplained_joints == expected["coverage"]["unexplained_joints"]
+    assert diagnosis.holding_torque_message == expected["holding_torque"]["message"]
+    assert diagnosis.holding_torque_joints == \
+        [h["joint"] for h in expected["holding_torque"]["joints"]]
     assert [f.residual_rms_with_suggestions for f in diagnosis.joints] == \
         [f["residual_rms_with_suggestions"] for f in expected["joints"]]
     # The refused candidates too, with the bar each failed.
