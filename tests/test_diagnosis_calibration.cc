@@ -906,6 +906,20 @@ TEST(HoldingTorque, AStretchEndsWhereATrajectoryStartsAndBadInputIsRefused) {
   EXPECT_THROW(FindHoldingTorques(log.X, log.R, {}, bad), std::invalid_argument);
   log.R(5, 1) = std::nan("");
   EXPECT_THROW(FindHoldingTorques(log.X, log.R), std::invalid_argument);
+  // The residual is read on each stretch's first max_rows_per_stretch rows only.
+  RestLog later = MakeRestLog({{home, V2(2.0, 0.5)}}, 120, 6);
+  later.R.middleRows(60, 60).array() += 100.0;  // the stop's last 60 rows
+  HoldingTorqueOptions first_rows;
+  first_rows.max_rows_per_stretch = 60;
+  EXPECT_NEAR(FindHoldingTorques(later.X, later.R, {}, first_rows).stretches[0].mean_residual[0],
+              2.0, 0.01);
+  EXPECT_NEAR(FindHoldingTorques(later.X, later.R).stretches[0].mean_residual[0], 52.0, 0.01);
+  const std::vector<RestStretch> stretches = FindRestStretches(later.X, 2);
+  ASSERT_EQ(stretches.size(), 1u);
+  EXPECT_EQ(stretches[0].end, 120);
+  EXPECT_EQ(stretches[0].mean_residual.size(), 0);
+  first_rows.max_rows_per_stretch = 10;  // below min_rest_rows
+  EXPECT_THROW(FindHoldingTorques(later.X, later.R, {}, first_rows), std::invalid_argument);
 }
 
 // The diagnosis names torques at rest that the state does not determine: the clean two-link

@@ -36,6 +36,9 @@ bool HoldingTorqueOptions::IsValid(std::string* error) const {
     reason = "rest_velocity: expected a finite value > 0, got " + std::to_string(rest_velocity);
   } else if (min_rest_rows < 2) {
     reason = "min_rest_rows: expected >= 2, got " + std::to_string(min_rest_rows);
+  } else if (max_rows_per_stretch < min_rest_rows) {
+    reason = "max_rows_per_stretch: expected >= min_rest_rows (" + std::to_string(min_rest_rows) +
+             "), got " + std::to_string(max_rows_per_stretch);
   } else if (!(pose_tolerance >= 0.0) || !std::isfinite(pose_tolerance)) {
     reason = "pose_tolerance: expected a finite value >= 0, got " + std::to_string(pose_tolerance);
   } else if (!(min_difference_to_noise > 0.0) || !std::isfinite(min_difference_to_noise)) {
@@ -46,35 +49,32 @@ bool HoldingTorqueOptions::IsValid(std::string* error) const {
   return reason.empty();
 }
 
-HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatrixRef& R,
-                                        const std::vector<int>& segment_starts,
-                                        const HoldingTorqueOptions& options) {
+std::vector<RestStretch> FindRestStretches(const ConstMatrixRef& X, int num_joints,
+                                          const std::vector<int>& segment_starts,
+                                          const HoldingTorqueOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("HoldingTorqueOptions::" + error);
   const Eigen::Index m = X.rows();
-  const int n = static_cast<int>(R.cols());
-  if (n < 1) throw std::invalid_argument("FindHoldingTorques: R has no columns (joints)");
-  RequireSize("FindHoldingTorques R", R.rows(), m, "rows (as in X)");
+  const int n = num_joints;
+  if (n < 1) throw std::invalid_argument("FindRestStretches: expected at least one joint");
   if (X.cols() < 2 * n) {
-    throw std::invalid_argument("FindHoldingTorques: X needs at least 2 N = " +
+    throw std::invalid_argument("FindRestStretches: X needs at least 2 N = " +
                                 std::to_string(2 * n) + " columns (q, qd), got " +
                                 std::to_string(X.cols()));
   }
-  RequireFinite("FindHoldingTorques X", X.leftCols(2 * n));
-  RequireFinite("FindHoldingTorques R", R);
+  RequireFinite("FindRestStretches X", X.leftCols(2 * n));
   std::vector<bool> starts_here(static_cast<size_t>(m), false);
   for (size_t s = 0; s < segment_starts.size(); ++s) {
     const int row = segment_starts[s];
     if (row < 0 || row >= m || (s > 0 && row <= segment_starts[s - 1])) {
-      throw std::invalid_argument("FindHoldingTorques: segment starts must be increasing rows of "
+      throw std::invalid_argument("FindRestStretches: segment starts must be increasing rows of "
                                   "X (0 to " + std::to_string(m - 1) + "), got " +
                                   std::to_string(row) + " at position " + std::to_string(s));
     }
     starts_here[static_cast<size_t>(row)] = true;
   }
-
-  HoldingTorqueFinding out;
-  // The still stretches: runs of rows at rest, cut where a trajectory starts.
+  // Runs of rows at rest, cut where a trajectory starts.
+  std::vector<RestStretch> stretches;
   auto at_rest = [&](Eigen::Index i) {
     return (X.row(i).segment(n, n).array().abs() < options.rest_velocity).all();
   };
@@ -84,8 +84,7 @@ HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatr
     s.begin = static_cast<int>(begin);
     s.end = static_cast<int>(end);
     s.pose = X.middleRows(begin, end - begin).leftCols(n).colwise().mean().transpose();
-    s.mean_residual = R.middleRows(begin, end - begin).colwise().mean().transpose();
-    out.stretches.push_back(std::move(s));
+    stretches.push_back(std::move(s));
   };
   Eigen::Index run = -1;
   for (Eigen::Index i = 0; i < m; ++i) {
@@ -101,13 +100,35 @@ HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatr
     }
   }
   if (run >= 0) close_run(run, m);
+  return stretches;
+}
 
-  // Each joint's noise at rest: its residual's successive differences inside the stretches.
+int ReadRows(const RestStretch& stretch, const HoldingTorqueOptions& options) {
+  return std::min(stretch.end - stretch.begin, options.max_rows_per_stretch);
+}
+
+HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatrixRef& R,
+                                        const std::vector<int>& segment_starts,
+                                        const HoldingTorqueOptions& options) {
+  const int n = static_cast<int>(R.cols());
+  if (n < 1) throw std::invalid_argument("FindHoldingTorques: R has no columns (joints)");
+  RequireSize("FindHoldingTorques R", R.rows(), X.rows(), "rows (as in X)");
+  HoldingTorqueFinding out;
+  out.stretches = FindRestStretches(X, n, segment_starts, options);
+  // Each stretch's first ReadRows rows: their mean residual, and each joint's noise at rest
+  // from the successive differences there.
+  for (RestStretch& s : out.stretches) {
+    const auto rows = R.middleRows(s.begin, ReadRows(s, options));
+    RequireFinite("FindHoldingTorques R", rows);
+    s.mean_residual = rows.colwise().mean().transpose();
+  }
   Vector noise(n);
   for (int j = 0; j < n; ++j) {
     std::vector<double> d;
     for (const RestStretch& s : out.stretches) {
-      for (int i = s.begin; i + 1 < s.end; ++i) d.push_back(std::abs(R(i + 1, j) - R(i, j)));
+      for (int i = s.begin; i + 1 < s.begin + ReadRows(s, options); ++i) {
+        d.push_back(std::abs(R(i + 1, j) - R(i, j)));
+      }
     }
     noise[j] = NoiseFromDifferences(d);
   }

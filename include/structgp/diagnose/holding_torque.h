@@ -26,6 +26,9 @@ struct HoldingTorqueOptions {
   double rest_velocity = 0.005;
   /// A still stretch has at least this many consecutive rows at rest.
   int min_rest_rows = 50;
+  /// The residual of a stretch is read on its first rows, at most this many (>= min_rest_rows):
+  /// at rest the held torque is constant, and a model is asked for no more predictions.
+  int max_rows_per_stretch = 200;
   /// Two stretches are at the same configuration when the mean angles of every joint differ
   /// by at most this, rad. The torques compared are the residuals of the model, whose
   /// predictions carry the gravity of each configuration, so the stops need not be exact.
@@ -44,7 +47,9 @@ struct RestStretch {
   int begin = 0;
   int end = 0;
   Vector pose;           ///< mean q (N)
-  Vector mean_residual;  ///< mean residual (N), N m
+  /// Mean residual (N) over the stretch's first max_rows_per_stretch rows (FindHoldingTorques;
+  /// empty from FindRestStretches).
+  Vector mean_residual;
 };
 
 struct HoldingTorqueJoint {
@@ -66,9 +71,17 @@ struct HoldingTorqueFinding {
   std::string message;
 };
 
+/// The still stretches of X (rows in time order, at least 2 N columns: q, qd, ...):
+/// num_joints' velocities all below options.rest_velocity for min_rest_rows rows or more, not
+/// crossing a segment start (see FindHoldingTorques). Throws std::invalid_argument as it.
+std::vector<RestStretch> FindRestStretches(const ConstMatrixRef& X, int num_joints,
+                                          const std::vector<int>& segment_starts = {},
+                                          const HoldingTorqueOptions& options = {});
+
 /// The still stretches of X (rows in time order, at least 2 N columns: q, qd, ...) and the
 /// joints whose residual R (m x N: torques less a model's predictions, or the torques
-/// themselves) differs between stops at the same configuration. segment_starts: rows where a
+/// themselves) differs between stops at the same configuration. R is read only on the first
+/// max_rows_per_stretch rows of each stretch. segment_starts: rows where a
 /// new trajectory starts (a stretch does not cross one; empty: one trajectory). Throws
 /// std::invalid_argument on bad sizes, non-finite values, invalid options or segment starts
 /// that are not increasing rows of X.
