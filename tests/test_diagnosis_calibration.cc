@@ -75,6 +75,22 @@ TEST(Autocorrelation, LagsNeverSpanATrajectoryRestart) {
   EXPECT_NEAR(whole[1], 7.0 / 10.0, 1e-12);  // nine products, one of them -1
 }
 
+// The noise from successive differences: white noise under a slow wander is measured as the
+// noise alone, and a difference never spans a trajectory restart.
+TEST(Autocorrelation, NoiseFromDifferencesSeesTheWhiteNoiseNotTheWanderNorARestart) {
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> n(0.0, 0.3);
+  Vector x(20000);
+  for (int i = 0; i < x.size(); ++i) x[i] = 50.0 * std::sin(i / 3000.0) + n(rng);
+  EXPECT_NEAR(NoiseFromDifferences(x, {0}), 0.3, 0.01);
+  const double unit = 0.6744897501960817 * std::sqrt(2.0);
+  Vector step(3);
+  step << 0.0, 1.0, 100.0;
+  EXPECT_NEAR(NoiseFromDifferences(step, {0, 2}) * unit, 1.0, 1e-12);  // |1 - 0| only
+  EXPECT_NEAR(NoiseFromDifferences(step, {0}) * unit, 99.0, 1e-12);    // the median of 1, 99
+  EXPECT_EQ(NoiseFromDifferences(step, {0, 1, 2}), 0.0);              // no segment of two rows
+}
+
 // Yule-Walker by Levinson-Durbin recovers an AR(2) process; the filter works within segments.
 TEST(Autocorrelation, AutoregressionRecoversAnAr2ProcessAndFiltersWithinSegments) {
   std::mt19937_64 rng(3);

@@ -58,16 +58,6 @@ std::vector<std::pair<int, int>> Folds(int m, int k, const std::vector<int>& sta
 // Noise level from successive differences of a residual, robustly: a missing effect that is
 // smooth along the log cancels in the differences, and the median ignores its rare jumps (a
 // Coulomb step at each velocity reversal): median |r_{i+1} - r_i| / (0.6745 sqrt 2).
-double NoiseFromDifferences(const Vector& r) {
-  const Eigen::Index m = r.size();
-  if (m < 2) return 0.0;
-  std::vector<double> d(static_cast<size_t>(m - 1));
-  for (Eigen::Index i = 0; i + 1 < m; ++i) d[static_cast<size_t>(i)] = std::abs(r[i + 1] - r[i]);
-  auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
-  std::nth_element(d.begin(), mid, d.end());
-  return *mid / (0.6744897501960817 * std::sqrt(2.0));
-}
-
 std::vector<Concentration> Concentrations(const Vector& r, const Matrix& vars,
                                           const std::vector<std::string>& names, int bins) {
   const int m = static_cast<int>(r.size());
@@ -622,7 +612,7 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
     // to is large and varies from row to row by more than the noise.
     const Vector r = refit_residual.col(j).tail(m_log);
     out.joints[static_cast<size_t>(j)].refit_rms = std::sqrt(r.squaredNorm() / m_log);
-    out.joints[static_cast<size_t>(j)].noise_std_estimate = NoiseFromDifferences(r);
+    out.joints[static_cast<size_t>(j)].noise_std_estimate = NoiseFromDifferences(r, {0});
   }
 
 

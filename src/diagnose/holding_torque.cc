@@ -8,19 +8,10 @@
 #include <vector>
 
 #include "structgp/core/validate.h"
+#include "structgp/diagnose/autocorrelation.h"
 
 namespace structgp {
 namespace {
-
-// Median absolute successive difference / (0.674 sqrt 2): the spread of white noise, which a
-// slow wander of the signal does not move.
-double NoiseFromDifferences(const std::vector<double>& differences) {
-  if (differences.empty()) return 0.0;
-  std::vector<double> d = differences;
-  auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
-  std::nth_element(d.begin(), mid, d.end());
-  return *mid / (0.6744897501960817 * std::sqrt(2.0));
-}
 
 std::string Format(const char* format, double value) {
   char buffer[64];
@@ -122,15 +113,20 @@ HoldingTorqueFinding FindHoldingTorques(const ConstMatrixRef& X, const ConstMatr
     RequireFinite("FindHoldingTorques R", rows);
     s.mean_residual = rows.colwise().mean().transpose();
   }
-  Vector noise(n);
+  std::vector<int> starts;  // of each stretch's rows in `rest` below
+  int read = 0;
+  for (const RestStretch& s : out.stretches) {
+    starts.push_back(read);
+    read += ReadRows(s, options);
+  }
+  Vector noise(n), rest(read);
   for (int j = 0; j < n; ++j) {
-    std::vector<double> d;
-    for (const RestStretch& s : out.stretches) {
-      for (int i = s.begin; i + 1 < s.begin + ReadRows(s, options); ++i) {
-        d.push_back(std::abs(R(i + 1, j) - R(i, j)));
-      }
+    for (size_t k = 0; k < out.stretches.size(); ++k) {
+      const RestStretch& s = out.stretches[k];
+      rest.segment(starts[k], ReadRows(s, options)) =
+          R.col(j).segment(s.begin, ReadRows(s, options));
     }
-    noise[j] = NoiseFromDifferences(d);
+    noise[j] = NoiseFromDifferences(rest, starts);
   }
 
   // Pairs at the same configuration; per joint the pair whose mean residuals differ most.

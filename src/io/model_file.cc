@@ -133,14 +133,19 @@ Json NumberArray(const Vector& v) {
   return out;
 }
 
-std::string Crc32Text(const std::string& text) {
-  uLong crc = crc32(0L, Z_NULL, 0);
-  // zlib takes the length as uInt: feed large texts in pieces.
+// zlib's CRC-32 of `size` bytes after `crc`; zlib takes the length as uInt, so large inputs go
+// in pieces.
+uLong Crc32Update(uLong crc, const char* data, size_t size) {
   constexpr size_t kPiece = size_t{1} << 30;
-  for (size_t begin = 0; begin < text.size(); begin += kPiece) {
-    const size_t n = std::min(kPiece, text.size() - begin);
-    crc = crc32(crc, reinterpret_cast<const Bytef*>(text.data() + begin), static_cast<uInt>(n));
+  for (size_t begin = 0; begin < size; begin += kPiece) {
+    const size_t n = std::min(kPiece, size - begin);
+    crc = crc32(crc, reinterpret_cast<const Bytef*>(data + begin), static_cast<uInt>(n));
   }
+  return crc;
+}
+
+std::string Crc32Text(const std::string& text) {
+  const uLong crc = Crc32Update(crc32(0L, Z_NULL, 0), text.data(), text.size());
   char buffer[32];
   std::snprintf(buffer, sizeof(buffer), "crc32:%08lx", static_cast<unsigned long>(crc));
   return buffer;
@@ -552,15 +557,6 @@ void AppendValue(std::string* out, T value) {
 
 void AppendDoubles(std::string* out, const double* values, size_t count) {
   out->append(reinterpret_cast<const char*>(values), count * sizeof(double));
-}
-
-uLong Crc32Update(uLong crc, const char* data, size_t size) {
-  constexpr size_t kPiece = size_t{1} << 30;  // crc32 takes a uInt length
-  for (size_t begin = 0; begin < size; begin += kPiece) {
-    const size_t n = std::min(kPiece, size - begin);
-    crc = crc32(crc, reinterpret_cast<const Bytef*>(data + begin), static_cast<uInt>(n));
-  }
-  return crc;
 }
 
 // Reads a posterior file for a model file with checksum `model_checksum` and p N = pn inducing
