@@ -252,11 +252,11 @@ void BindFitSummary(py::module_& m) {
 
 // ---- the model -------------------------------------------------------------------------------
 
-// threads= of fit, predict and load: 1..256, as the CLI's --threads (a larger count would start
-// that many system threads for a batch fit or a long log).
+// threads= of fit, predict and load: 1..kMaxThreads, as the CLI's --threads.
 int CheckedThreads(int threads) {
-  if (threads < 1 || threads > 256) {
-    throw std::invalid_argument("threads: expected 1 to 256, got " + std::to_string(threads));
+  if (threads < 1 || threads > kMaxThreads) {
+    throw std::invalid_argument("threads: expected 1 to " + std::to_string(kMaxThreads) +
+                                ", got " + std::to_string(threads));
   }
   return threads;
 }

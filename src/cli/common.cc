@@ -83,7 +83,7 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
 
 int MachineThreads() {
   const unsigned n = std::thread::hardware_concurrency();  // 0 when unknown
-  return static_cast<int>(std::clamp(n, 1u, 256u));
+  return static_cast<int>(std::clamp(n, 1u, static_cast<unsigned>(kMaxThreads)));
 }
 
 void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options,
@@ -96,7 +96,7 @@ void AddLoadThreadsFlag(CLI::App* command, LoadOptions* options,
     help += "; default: this machine's hardware threads";
   }
   command->add_option("--threads", options->num_threads, help)
-      ->check(CLI::Range(1, 256))
+      ->check(CLI::Range(1, kMaxThreads))
       ->capture_default_str();
 }
 

@@ -86,7 +86,7 @@ void AddRobotFlags(CLI::App* command, RobotFlags* flags);
 /// and for a URDF that cannot be read or has no such chain (the message names the file).
 std::shared_ptr<const RigidBodyChain> LoadRobot(const RobotFlags& flags);
 
-/// The machine's hardware threads (std::thread::hardware_concurrency), in 1..256.
+/// The machine's hardware threads (std::thread::hardware_concurrency), in 1..kMaxThreads.
 int MachineThreads();
 
 /// Whether --threads defaults to one thread or to the machine's.

@@ -87,7 +87,7 @@ class FitCommand : public Command {
                     "Threads accumulating Phi^T Phi of feature-map models (large data sets), "
                     "evaluating lagk's evidence in its hyper-parameter search, and conditioning "
                     "lagk on every row through its inducing states")
-        ->check(CLI::Range(1, 256))
+        ->check(CLI::Range(1, kMaxThreads))
         ->capture_default_str();
     cmd->add_option("--max-kernel-rows", max_kernel_rows_,
                     "Function-space models (rbf, rbfs, pol from 4 joints, or pol/motor with more "

@@ -48,6 +48,10 @@ const char* ToString(Form form);
 /// O(m^2) memory and O(m^3) time: at m = 5000 that is 200 MB for K and 100 MB for the packed
 /// factor and ~10 s on one core; beyond it a subset is used (see BatchFitOptions).
 inline constexpr int kDefaultMaxKernelRows = 5000;
+/// The most threads the structgp program and the Python module accept for BatchFitOptions::
+/// num_threads, LoadOptions::num_threads and RobotModel::PredictRows (each starts that many
+/// system threads; the library itself asks only for at least one).
+inline constexpr int kMaxThreads = 256;
 
 /// How a batch fit handles large data sets.
 struct BatchFitOptions {
