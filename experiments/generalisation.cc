@@ -62,6 +62,7 @@
 #include <Eigen/Core>
 #include <Eigen/QR>
 
+#include "chain_identification.h"
 #include "experiment_program.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
@@ -84,6 +85,10 @@ namespace structgp {
 namespace {
 
 using internal::Format;
+
+int g_chain_threads = 1;
+int g_chain_starts = 8;
+int g_chain_rows = 400;
 
 constexpr double kDt = 0.01;           // s
 constexpr int kVias = 10;
@@ -524,6 +529,33 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
         return out;
       });
     }
+  } else if (name == "chain" || name == "chain+fri") {
+    // A serial chain identified from the torques alone (experiments/chain_identification.h).
+    ChainIdentificationOptions o;
+    o.friction = c.friction && name == "chain+fri";
+    o.friction_width = kWidth;
+    o.threads = g_chain_threads;
+    o.starts = g_chain_starts;
+    o.search_rows = g_chain_rows;
+    row.model = o.friction ? "chain+fri" : "chain";
+    const ChainIdentificationResult r = IdentifyChain(c.train.X, c.train.Y, o);
+    row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::vector<double> sorted = r.start_costs;
+    std::sort(sorted.begin(), sorted.end());
+    row.note = Format("best start %d of %d, costs %s; kinematics %s", r.best_start,
+                      static_cast<int>(r.start_costs.size()),
+                      Join(Eigen::Map<const Vector>(sorted.data(), static_cast<Eigen::Index>(sorted.size())), "%.4g").c_str(),
+                      Join(r.kinematics, "%.3f").c_str());
+    const int N = static_cast<int>(c.train.Y.cols());
+    for (const auto& t : c.tests) {
+      Prediction p{PredictChain(N, r, t.X, o), Matrix(t.X.rows(), N)};
+      for (Eigen::Index i = 0; i < t.X.rows(); ++i) p.noisy_std.row(i) = r.noise_std.transpose();
+      predictions.push_back(p);
+    }
+    if (components) {
+      row.component_ratio =
+          ComponentRatios(c, [&](const Matrix& X) { return PredictChain(N, r, X, o); });
+    }
   } else if (name == "reference") {
     Reference reference(*c.truth, c.friction, c.noise);
     reference.Fit(c.train.X, c.train.Y);
@@ -626,6 +658,7 @@ int Run(const Flags& flags, int argc, char** argv) {
                                    : EulerLagrangeGPOptions::InducingRule::kCoverStates;
   lagk_options.sigmas = f.lagk_sigmas;
   lagk_options.num_threads = f.threads;
+  g_chain_threads = f.threads;
   if (!FromString(f.prior, &lagk_options.prior.family)) {
     throw std::invalid_argument("--prior: expected gaussian, student_t or none, got '" + f.prior + "'");
   }
@@ -759,6 +792,12 @@ int main(int argc, char** argv) {
                     "threads of every fit (as structgp fit --threads: the searches' evidence "
                     "and statistics, lagk's posterior)")
       ->check(structgp::AtLeast(1));
+  structgp::AddFlag(&app, "--chain-starts", &structgp::g_chain_starts,
+                    "chain: starts of the kinematic search")
+      ->check(structgp::AtLeast(1));
+  structgp::AddFlag(&app, "--chain-rows", &structgp::g_chain_rows,
+                    "chain: evenly spaced rows of the kinematic search")
+      ->check(structgp::AtLeast(2));
   app.add_option("--lagk-inducing-rule", f.lagk_inducing_rule,
                  "how lagk's inducing states are chosen: cover (the states) or stride (in time)")
       ->check(CLI::IsMember({"cover", "stride"}));
