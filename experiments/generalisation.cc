@@ -62,7 +62,6 @@
 #include <Eigen/Core>
 #include <Eigen/QR>
 
-#include "chain_identification.h"
 #include "experiment_program.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/fit/fit_model.h"
@@ -73,6 +72,7 @@
 #include "structgp/kernel/pol_chain_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 #include "structgp/model/kernel_gp.h"
+#include "structgp/rigid_body/chain_identification.h"
 #include "structgp/rigid_body/physical_consistency.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
@@ -529,32 +529,42 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
         return out;
       });
     }
-  } else if (name == "chain" || name == "chain+fri") {
-    // A serial chain identified from the torques alone (experiments/chain_identification.h).
+  } else if (name == "chain+fri" || name == "chain") {
+    // The product's path for a robot without a URDF: `structgp identify` (the chain's
+    // kinematics from the torques, rigid_body/chain_identification.h), then `structgp fit
+    // --model rbd[+fri] --urdf` on the URDF it wrote (FitModel with the CLI's defaults).
+    const bool friction = c.friction && name == "chain+fri";
+    row.model = friction ? "chain+fri" : "chain";
     ChainIdentificationOptions o;
-    o.friction = c.friction && name == "chain+fri";
-    o.friction_width = kWidth;
-    o.threads = g_chain_threads;
+    o.friction = friction;
+    o.num_threads = g_chain_threads;
     o.starts = g_chain_starts;
     o.search_rows = g_chain_rows;
-    row.model = o.friction ? "chain+fri" : "chain";
-    const ChainIdentificationResult r = IdentifyChain(c.train.X, c.train.Y, o);
+    const ChainIdentificationSummary id = IdentifyChain(c.train.X, c.train.Y, o);
+    const auto chain =
+        std::make_shared<const RigidBodyChain>(RigidBodyChain::FromUrdfString(id.urdf));
+    FitOptions fit_options;
+    fit_options.num_threads = g_chain_threads;
+    fit_options.model.batch.num_threads = g_chain_threads;
+    fit_options.model.rigid_body = chain;
+    const FittedModel fitted =
+        FitModel(ParseModelSpec(friction ? "rbd+fri" : "rbd"), c.train.X, c.train.Y, Vector(),
+                 fit_options);
+    if (!fitted.summary.IsUsable()) throw std::runtime_error("chain: " + fitted.summary.message);
+    const RobotModel& model = fitted.model;
     row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::vector<double> sorted = r.start_costs;
+    std::vector<double> sorted = id.start_costs;
     std::sort(sorted.begin(), sorted.end());
-    row.note = Format("best start %d of %d, costs %s; kinematics %s", r.best_start,
-                      static_cast<int>(r.start_costs.size()),
-                      Join(Eigen::Map<const Vector>(sorted.data(), static_cast<Eigen::Index>(sorted.size())), "%.4g").c_str(),
-                      Join(r.kinematics, "%.3f").c_str());
-    const int N = static_cast<int>(c.train.Y.cols());
-    for (const auto& t : c.tests) {
-      Prediction p{PredictChain(N, r, t.X, o), Matrix(t.X.rows(), N)};
-      for (Eigen::Index i = 0; i < t.X.rows(); ++i) p.noisy_std.row(i) = r.noise_std.transpose();
-      predictions.push_back(p);
-    }
+    row.note = Format("identify: best of %d starts (%d at it), costs %s; kinematics %s",
+                      static_cast<int>(sorted.size()), id.starts_at_best,
+                      Join(Eigen::Map<const Vector>(sorted.data(),
+                                                    static_cast<Eigen::Index>(sorted.size())),
+                           "%.3g")
+                          .c_str(),
+                      Join(id.kinematics, "%.3f").c_str());
+    for (const auto& t : c.tests) predictions.push_back(PredictModel(model, t.X));
     if (components) {
-      row.component_ratio =
-          ComponentRatios(c, [&](const Matrix& X) { return PredictChain(N, r, X, o); });
+      row.component_ratio = ComponentRatios(c, [&](const Matrix& X) { return PredictModel(model, X).mean; });
     }
   } else if (name == "reference") {
     Reference reference(*c.truth, c.friction, c.noise);

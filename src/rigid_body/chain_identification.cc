@@ -1,0 +1,353 @@
+#include "structgp/rigid_body/chain_identification.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+#include <ceres/ceres.h>
+#include <kdl/frames.hpp>
+
+#include "structgp/core/row_subset.h"
+#include "structgp/internal/workers.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
+
+namespace structgp {
+namespace {
+
+// The shortest decimal that reads back to the same double.
+std::string Num(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value + 0.0);
+  return std::string(buffer, result.ptr);
+}
+
+// Modified DH of joint i (1-based) from the parameter vector: alpha, a, theta, d.
+struct Dh {
+  double alpha = 0.0, a = 0.0, theta = 0.0, d = 0.0;
+};
+
+std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
+  std::vector<Dh> dh(static_cast<size_t>(N));
+  dh[0].alpha = k[0];
+  if (N >= 2) {
+    dh[0].theta = k[1];
+    dh[1].alpha = k[2];
+    dh[1].a = k[3];
+    for (int i = 2; i <= N - 1; ++i) {
+      const int o = 4 + 4 * (i - 2);
+      dh[static_cast<size_t>(i - 1)].theta = k[o];
+      dh[static_cast<size_t>(i - 1)].d = k[o + 1];
+      dh[static_cast<size_t>(i)].alpha = k[o + 2];
+      dh[static_cast<size_t>(i)].a = k[o + 3];
+    }
+  }
+  return dh;
+}
+
+// Least squares of the inertial parameters (and friction) on the design A (rows scaled), with a
+// ridge of 1e-9 of the normal matrix's mean diagonal (the regressor has directions no motion
+// shows: the minimum-norm answer there, and a cost that is smooth in the kinematics).
+Vector Solve(const Matrix& A, const Vector& b) {
+  Matrix G = A.transpose() * A;
+  const double mean_diagonal = std::max(G.diagonal().mean(), std::numeric_limits<double>::min());
+  G.diagonal().array() += 1e-9 * mean_diagonal;
+  return G.ldlt().solve(A.transpose() * b);
+}
+
+// The design of X's rows for chain: row i * N + j is joint j's torque regressor at row i, then
+// viscous and Coulomb columns per joint when asked; each row divided by its joint's scale.
+Matrix Design(const RigidBodyChain& chain, const ConstMatrixRef& X, const Vector& scale,
+              const ChainIdentificationOptions& options) {
+  const int N = chain.num_joints();
+  const int P = chain.num_parameters();
+  Matrix A = Matrix::Zero(X.rows() * N, P + (options.friction ? 2 * N : 0));
+  RigidBodyChain::Workspace ws = chain.MakeWorkspace();
+  Matrix regressor(N, P);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    chain.Regressor(X.row(i).segment(0, N).transpose(), X.row(i).segment(N, N).transpose(),
+                    X.row(i).segment(2 * N, N).transpose(), RigidBodyChain::Terms::kAll,
+                    regressor, ws);
+    A.block(i * N, 0, N, P) = regressor;
+    if (options.friction) {
+      for (int j = 0; j < N; ++j) {
+        const double qd = X(i, N + j);
+        A(i * N + j, P + 2 * j) = qd;
+        A(i * N + j, P + 2 * j + 1) = std::tanh(qd / options.friction_width);
+      }
+    }
+  }
+  for (Eigen::Index r = 0; r < A.rows(); ++r) A.row(r) /= scale[r % N];
+  return A;
+}
+
+struct Search {
+  int N;
+  Matrix X;   // the search rows
+  Vector y;   // their torques stacked row by row, each divided by its joint's scale
+  Vector scale;
+  const ChainIdentificationOptions* options;
+};
+
+// The scaled least-squares residual for the kinematics k; false where no chain is made of them.
+bool Residual(const Search& s, const double* k, double* out) {
+  Matrix A;
+  try {
+    const Eigen::Map<const Vector> kinematics(k, NumChainKinematicParameters(s.N));
+    const RigidBodyChain chain = RigidBodyChain::FromUrdfString(ChainUrdf(s.N, kinematics));
+    A = Design(chain, s.X, s.scale, *s.options);
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+  Eigen::Map<Vector>(out, A.rows()) = s.y - A * Solve(A, s.y);
+  return true;
+}
+
+struct ResidualFunctor {
+  const Search* search;
+  bool operator()(double const* const* parameters, double* residuals) const {
+    return Residual(*search, parameters[0], residuals);
+  }
+};
+
+// Whether entry i of the kinematic parameters is a length (a or d) rather than an angle.
+bool IsLength(int i) { return i == 3 || (i >= 4 && ((i - 4) % 4 == 1 || (i - 4) % 4 == 3)); }
+
+struct LengthPull {
+  int size;
+  double weight;
+  bool operator()(double const* const* parameters, double* residuals) const {
+    for (int i = 0; i < size; ++i) residuals[i] = IsLength(i) ? weight * parameters[0][i] : 0.0;
+    return true;
+  }
+};
+
+// Twists near 0 or +-pi/2 (most arms'), angles about axes anywhere, offsets within 0.4 m, the
+// first axis near the vertical.
+Vector RandomStart(int N, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::uniform_int_distribution<int> quarter(-1, 1);
+  const auto twist = [&] { return M_PI / 2 * quarter(*rng) + 0.1 * u(*rng); };
+  Vector k(NumChainKinematicParameters(N));
+  k[0] = 0.1 * u(*rng);
+  if (N >= 2) {
+    k[1] = M_PI * u(*rng);
+    k[2] = twist();
+    k[3] = 0.3 * u(*rng);
+    for (int i = 2; i <= N - 1; ++i) {
+      const int o = 4 + 4 * (i - 2);
+      k[o] = M_PI * u(*rng);
+      k[o + 1] = 0.4 * u(*rng);
+      k[o + 2] = twist();
+      k[o + 3] = 0.4 * u(*rng);
+    }
+  }
+  return k;
+}
+
+// Levenberg-Marquardt from *k; the final cost (mean squared scaled residual), infinite when
+// the start's chain cannot be evaluated.
+double Minimise(const Search& search, int max_iterations, Vector* k) {
+  ceres::Problem problem;
+  auto* cost = new ceres::DynamicNumericDiffCostFunction<ResidualFunctor, ceres::FORWARD>(
+      new ResidualFunctor{&search});
+  cost->AddParameterBlock(static_cast<int>(k->size()));
+  cost->SetNumResiduals(static_cast<int>(search.y.size()));
+  problem.AddResidualBlock(cost, nullptr, k->data());
+  // Lengths that no torque determines (the offsets along two parallel axes trade off, say)
+  // stay small: a pull of 1e-6 per m^2 on the mean cost, a thousandth of a 1% residual's for
+  // lengths of 0.3 m, the size of the minimum where they do show.
+  auto* pull = new ceres::DynamicNumericDiffCostFunction<LengthPull, ceres::FORWARD>(
+      new LengthPull{static_cast<int>(k->size()),
+                     std::sqrt(1e-6 * static_cast<double>(search.y.size()))});
+  pull->AddParameterBlock(static_cast<int>(k->size()));
+  pull->SetNumResiduals(static_cast<int>(k->size()));
+  problem.AddResidualBlock(pull, nullptr, k->data());
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::DENSE_QR;
+  solver.max_num_iterations = max_iterations;
+  solver.num_threads = 1;
+  solver.logging_type = ceres::SILENT;
+  ceres::Solver::Summary result;
+  ceres::Solve(solver, &problem, &result);
+  if (!result.IsSolutionUsable() || !std::isfinite(result.final_cost)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  // The cost of the fit alone (without the pull), the angles in (-pi, pi].
+  for (Eigen::Index i = 0; i < k->size(); ++i) {
+    if (!IsLength(static_cast<int>(i))) (*k)[i] = std::remainder((*k)[i], 2.0 * M_PI);
+  }
+  std::vector<double> r(search.y.size());
+  if (!Residual(search, k->data(), r.data())) return std::numeric_limits<double>::infinity();
+  double sum = 0.0;
+  for (double v : r) sum += v * v;
+  return sum / static_cast<double>(r.size());
+}
+
+// The rows of the search, their torques stacked and scaled.
+void SetRows(const ConstMatrixRef& X, const ConstMatrixRef& Y, Eigen::Index count, Search* s) {
+  const std::vector<int> rows = EvenlySpacedRows(X.rows(), std::min<Eigen::Index>(X.rows(), count));
+  s->X = SelectRows(X, rows);
+  s->y.resize(static_cast<Eigen::Index>(rows.size()) * s->N);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    for (int j = 0; j < s->N; ++j) {
+      s->y[static_cast<Eigen::Index>(i) * s->N + j] = Y(rows[i], j) / s->scale[j];
+    }
+  }
+}
+
+}  // namespace
+
+int NumChainKinematicParameters(int num_joints) {
+  if (num_joints < 1) throw std::invalid_argument("chain: at least one joint");
+  return num_joints >= 2 ? 4 * num_joints - 4 : 1;
+}
+
+std::vector<std::string> ChainKinematicNames(int num_joints) {
+  std::vector<std::string> names = {"tilt"};
+  if (num_joints >= 2) {
+    names.insert(names.end(), {"theta1", "alpha2", "a2"});
+    for (int i = 2; i <= num_joints - 1; ++i) {
+      const std::string n = std::to_string(i), next = std::to_string(i + 1);
+      names.insert(names.end(), {"theta" + n, "d" + n, "alpha" + next, "a" + next});
+    }
+  }
+  return names;
+}
+
+std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
+                      const std::string& robot_name) {
+  const int N = num_joints;
+  if (kinematics.size() != NumChainKinematicParameters(N)) {
+    throw std::invalid_argument("ChainUrdf: " + std::to_string(kinematics.size()) +
+                                " kinematic parameters, expected " +
+                                std::to_string(NumChainKinematicParameters(N)) + " for " +
+                                std::to_string(N) + " joints");
+  }
+  if (!kinematics.allFinite()) throw std::invalid_argument("ChainUrdf: a non-finite parameter");
+  const std::vector<Dh> dh = DhOf(N, kinematics);
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\"?>\n"
+     << "<!-- A serial chain identified from joint torques by structgp (structgp identify): its\n"
+     << "     kinematics, modified Denavit-Hartenberg, joint i: alpha a theta d\n";
+  for (int i = 0; i < N; ++i) {
+    const Dh& j = dh[static_cast<size_t>(i)];
+    os << "       joint" << i + 1 << " " << Num(j.alpha) << " " << Num(j.a) << " " << Num(j.theta)
+       << " " << Num(j.d) << "\n";
+  }
+  os << "     The inertial values are placeholders (1 kg, 0.01 kg m^2 at each link's origin):\n"
+     << "     the rbd models identify them from the data. -->\n"
+     << "<robot name=\"" << robot_name << "\">\n  <link name=\"base\"/>\n";
+  for (int i = 0; i < N; ++i) {
+    const Dh& j = dh[static_cast<size_t>(i)];
+    const KDL::Frame f = KDL::Frame(KDL::Rotation::RotX(j.alpha)) *
+                         KDL::Frame(KDL::Vector(j.a, 0.0, 0.0)) *
+                         KDL::Frame(KDL::Rotation::RotZ(j.theta)) *
+                         KDL::Frame(KDL::Vector(0.0, 0.0, j.d));
+    double roll = 0.0, pitch = 0.0, yaw = 0.0;
+    f.M.GetRPY(roll, pitch, yaw);
+    const std::string parent = i == 0 ? "base" : "link" + std::to_string(i);
+    const std::string child = "link" + std::to_string(i + 1);
+    os << "  <joint name=\"joint" << i + 1 << "\" type=\"continuous\">\n"
+       << "    <parent link=\"" << parent << "\"/>\n    <child link=\"" << child << "\"/>\n"
+       << "    <origin xyz=\"" << Num(f.p.x()) << " " << Num(f.p.y()) << " " << Num(f.p.z())
+       << "\" rpy=\"" << Num(roll) << " " << Num(pitch) << " " << Num(yaw) << "\"/>\n"
+       << "    <axis xyz=\"0 0 1\"/>\n  </joint>\n"
+       << "  <link name=\"" << child << "\">\n    <inertial>\n"
+       << "      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <mass value=\"1\"/>\n"
+       << "      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n"
+       << "    </inertial>\n  </link>\n";
+  }
+  os << "</robot>\n";
+  return os.str();
+}
+
+ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+                                         const ChainIdentificationOptions& options) {
+  const int N = static_cast<int>(Y.cols());
+  if (N < 1) throw std::invalid_argument("IdentifyChain: no torque columns");
+  if (X.cols() != 3 * N) {
+    throw std::invalid_argument("IdentifyChain: " + std::to_string(X.cols()) +
+                                " input columns, expected 3 N = " + std::to_string(3 * N) +
+                                " (q, qd, qdd of " + std::to_string(N) + " joints)");
+  }
+  if (X.rows() != Y.rows() || X.rows() < 2) {
+    throw std::invalid_argument("IdentifyChain: " + std::to_string(X.rows()) + " input rows and " +
+                                std::to_string(Y.rows()) +
+                                " torque rows (equal, and at least 2)");
+  }
+  if (!X.allFinite() || !Y.allFinite()) {
+    throw std::invalid_argument("IdentifyChain: a non-finite entry in the data");
+  }
+  if (!(options.friction_width > 0.0) || !std::isfinite(options.friction_width) ||
+      options.search_rows < 2 || options.starts < 1 || options.max_iterations < 1 ||
+      options.num_threads < 1) {
+    throw std::invalid_argument(
+        "IdentifyChain: options out of range (friction_width > 0, search_rows >= 2, starts >= 1, "
+        "max_iterations >= 1, num_threads >= 1)");
+  }
+  ChainIdentificationSummary summary;
+  summary.torque_rms = (Y.colwise().squaredNorm() / static_cast<double>(Y.rows())).cwiseSqrt().transpose();
+  for (int j = 0; j < N; ++j) {
+    if (!(summary.torque_rms[j] > 0.0)) {
+      throw std::invalid_argument("IdentifyChain: the torque of joint " + std::to_string(j + 1) +
+                                  " is zero on every row");
+    }
+  }
+
+  Search search;
+  search.N = N;
+  search.options = &options;
+  search.scale = summary.torque_rms;
+  SetRows(X, Y, options.search_rows, &search);
+
+  std::mt19937_64 rng(options.seed);
+  std::vector<Vector> found;
+  for (int s = 0; s < options.starts; ++s) found.push_back(RandomStart(N, &rng));
+  summary.start_costs.assign(found.size(), std::numeric_limits<double>::infinity());
+  const int workers = std::min(options.num_threads, options.starts);
+  internal::RunWorkers(workers, [&](int w) {
+    for (size_t s = static_cast<size_t>(w); s < found.size(); s += static_cast<size_t>(workers)) {
+      summary.start_costs[s] = Minimise(search, options.max_iterations, &found[s]);
+    }
+  });
+  summary.best_start = static_cast<int>(
+      std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
+      summary.start_costs.begin());
+  const double best = summary.start_costs[static_cast<size_t>(summary.best_start)];
+  if (!std::isfinite(best)) {
+    throw std::runtime_error("IdentifyChain: no start gave a chain whose torques could be fitted");
+  }
+  for (double c : summary.start_costs) summary.starts_at_best += c <= 1.01 * best ? 1 : 0;
+  summary.kinematics = found[static_cast<size_t>(summary.best_start)];
+  // The best start refined on more rows: the search rows' noise moves the minimum a little.
+  if (options.refine_rows > options.search_rows && X.rows() > options.search_rows) {
+    SetRows(X, Y, options.refine_rows, &search);
+    Vector refined = summary.kinematics;
+    summary.refined_cost = Minimise(search, options.max_iterations, &refined);
+    if (std::isfinite(summary.refined_cost)) summary.kinematics = refined;
+  }
+  summary.urdf = ChainUrdf(N, summary.kinematics, options.robot_name);
+
+  // The residual on every row with the identified kinematics.
+  const RigidBodyChain chain = RigidBodyChain::FromUrdfString(summary.urdf);
+  const Matrix A = Design(chain, X, search.scale, options);
+  Vector y(X.rows() * N);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    for (int j = 0; j < N; ++j) y[i * N + j] = Y(i, j) / search.scale[j];
+  }
+  const Vector residual = y - A * Solve(A, y);
+  summary.residual_rms.resize(N);
+  for (int j = 0; j < N; ++j) {
+    double sum = 0.0;
+    for (Eigen::Index i = 0; i < X.rows(); ++i) sum += residual[i * N + j] * residual[i * N + j];
+    summary.residual_rms[j] = search.scale[j] * std::sqrt(sum / static_cast<double>(X.rows()));
+  }
+  return summary;
+}
+
+}  // namespace structgp

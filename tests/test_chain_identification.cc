@@ -1,0 +1,260 @@
+// A chain's kinematics identified from its torques (rigid_body/chain_identification.h), against
+// KDL: the URDF written for given kinematics spans the torques of the simulator's chain built
+// from the same Denavit-Hartenberg parameters (and of chains that differ only where no torque
+// shows it), and not of other kinematics; the search finds, from a slow noisy log of an arm
+// in the other DH convention, a chain whose rbd+fri model predicts a fast log of another path
+// as well as least squares on the true chain's regressor.
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "structgp/core/row_subset.h"
+#include "structgp/fit/fit_model.h"
+#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
+#include "structgp/sim/dataset.h"
+#include "structgp/sim/friction.h"
+#include "structgp/sim/robot.h"
+#include "structgp/sim/trajectory.h"
+#include "structgp/sim/urdf.h"
+
+namespace structgp {
+namespace {
+
+// Random states (q, qd, qdd) of N joints.
+Matrix RandomStates(int N, int rows, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  Matrix X(rows, 3 * N);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    for (Eigen::Index k = 0; k < X.cols(); ++k) X(i, k) = u(rng);
+  }
+  return X;
+}
+
+Matrix Torques(const sim::Robot& robot, const Matrix& X) {
+  const int N = robot.num_joints();
+  Matrix Y(X.rows(), N);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    const Vector x = X.row(i).transpose();
+    Y.row(i) = robot.InverseDynamics(x.head(N), x.segment(N, N), x.segment(2 * N, N)).transpose();
+  }
+  return Y;
+}
+
+// RMS of the least-squares residual of Y on the chain's regressor, over the RMS of Y.
+double RelativeResidual(const RigidBodyChain& chain, const Matrix& X, const Matrix& Y) {
+  const int N = chain.num_joints();
+  Matrix A(X.rows() * N, chain.num_parameters());
+  Vector y(X.rows() * N);
+  for (Eigen::Index i = 0; i < X.rows(); ++i) {
+    const Vector x = X.row(i).transpose();
+    A.middleRows(i * N, N) = chain.Regressor(x.head(N), x.segment(N, N), x.segment(2 * N, N));
+    y.segment(i * N, N) = Y.row(i).transpose();
+  }
+  const Vector theta = A.colPivHouseholderQr().solve(y);
+  return (y - A * theta).norm() / y.norm();
+}
+
+// The simulator's robot (modified DH) with the kinematics k of the layout of
+// ChainKinematicNames, the redundant parameters set to `extra` (a_1, d_1, theta_N, d_N), and
+// inertias of its own.
+sim::Robot RobotOf(int N, const Vector& k, const Eigen::Vector4d& extra, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<sim::LinkParameters> links(static_cast<size_t>(N));
+  for (auto& l : links) {
+    l.mass = 0.5 + 2.0 * u(rng);
+    l.com = Eigen::Vector3d(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 0.2;
+    l.inertia = Eigen::Vector3d(0.02 + 0.05 * u(rng), 0.02 + 0.05 * u(rng), 0.03 + 0.05 * u(rng))
+                    .asDiagonal();
+    l.armature = 0.01 * u(rng);
+  }
+  links[0].alpha = k[0];
+  links[0].a = extra[0];
+  links[0].d = extra[1];
+  links[0].theta_offset = k[1];
+  links[1].alpha = k[2];
+  links[1].a = k[3];
+  for (int i = 2; i <= N - 1; ++i) {
+    const int o = 4 + 4 * (i - 2);
+    links[static_cast<size_t>(i - 1)].theta_offset = k[o];
+    links[static_cast<size_t>(i - 1)].d = k[o + 1];
+    links[static_cast<size_t>(i)].alpha = k[o + 2];
+    links[static_cast<size_t>(i)].a = k[o + 3];
+  }
+  links[static_cast<size_t>(N - 1)].theta_offset = extra[2];
+  links[static_cast<size_t>(N - 1)].d = extra[3];
+  return sim::Robot("dh", links, Eigen::Matrix3d::Identity(), sim::DhConvention::kModified);
+}
+
+TEST(ChainUrdf, SpansTheTorquesOfTheChainOfTheSameKinematicsAndNoOther) {
+  for (int N : {2, 4, 6}) {
+    SCOPED_TRACE("N = " + std::to_string(N));
+    const int K = NumChainKinematicParameters(N);
+    ASSERT_EQ(K, 4 * N - 4);
+    ASSERT_EQ(static_cast<int>(ChainKinematicNames(N).size()), K);
+    std::mt19937_64 rng(static_cast<std::uint64_t>(N));
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    Vector k(K);
+    for (int i = 0; i < K; ++i) k[i] = u(rng);
+    k[0] = 0.3;  // the first axis leans: gravity loads joint 1 too
+    const Matrix X = RandomStates(N, 60, 7);
+    const RigidBodyChain chain = RigidBodyChain::FromUrdfString(ChainUrdf(N, k), {}, "chain");
+    ASSERT_EQ(chain.num_joints(), N);
+    // The same kinematics, and with the parameters that change no torque set otherwise.
+    for (const Eigen::Vector4d& extra :
+         {Eigen::Vector4d(0.0, 0.0, 0.0, 0.0), Eigen::Vector4d(0.2, 0.3, 0.7, 0.1)}) {
+      const Matrix Y = Torques(RobotOf(N, k, extra, 3), X);
+      EXPECT_LT(RelativeResidual(chain, X, Y), 1e-9);
+    }
+    // Another twist or length anywhere: the torques are no longer spanned.
+    for (int i : {0, 2, 3, K - 1}) {
+      Vector other = k;
+      other[i] += 0.3;
+      const Matrix Y = Torques(RobotOf(N, other, Eigen::Vector4d::Zero(), 3), X);
+      EXPECT_GT(RelativeResidual(chain, X, Y), 1e-4) << ChainKinematicNames(N)[static_cast<size_t>(i)];
+    }
+  }
+}
+
+TEST(ChainUrdf, RefusesAWrongSizeOrANonFiniteParameter) {
+  EXPECT_THROW(ChainUrdf(3, Vector::Zero(7)), std::invalid_argument);
+  Vector k = Vector::Zero(8);
+  k[5] = std::nan("");
+  EXPECT_THROW(ChainUrdf(3, k), std::invalid_argument);
+  EXPECT_EQ(NumChainKinematicParameters(1), 1);
+  EXPECT_NO_THROW(RigidBodyChain::FromUrdfString(ChainUrdf(1, Vector::Constant(1, 0.4))));
+}
+
+struct Log {
+  Matrix X, Y;
+};
+
+// The three-link arm (standard DH, vertical waist) with viscous and Coulomb friction and 1%
+// noise on each joint's RMS torque (noise_std returns it).
+Log ThreeLinkLog(const sim::Trajectory& tr, std::uint64_t seed, Vector* noise_std) {
+  const sim::Robot robot = sim::ThreeLinkArm();
+  std::vector<sim::JointFriction> joints(3);
+  for (int j = 0; j < 3; ++j) {
+    joints[static_cast<size_t>(j)].coulomb = 0.3 + 0.1 * j;
+    joints[static_cast<size_t>(j)].viscous = 0.2;
+    joints[static_cast<size_t>(j)].smoothing_velocity = 0.01;
+  }
+  sim::SimulationOptions options;
+  options.friction = sim::FrictionModel(joints);
+  const sim::Dataset d = sim::Simulate(robot, tr, options);
+  if (noise_std->size() == 0) {
+    *noise_std = 0.01 * (d.Y.colwise().squaredNorm() / d.Y.rows()).cwiseSqrt().transpose();
+  }
+  Log log{d.X, d.Y};
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  for (Eigen::Index i = 0; i < log.Y.rows(); ++i) {
+    for (int j = 0; j < 3; ++j) log.Y(i, j) += (*noise_std)[j] * normal(rng);
+  }
+  return log;
+}
+
+// RMS per joint of (prediction - truth) over the noise.
+Vector RmsOverNoise(const Matrix& prediction, const Matrix& Y, const Vector& noise) {
+  return ((prediction - Y).colwise().squaredNorm() / Y.rows()).cwiseSqrt().transpose().cwiseQuotient(noise);
+}
+
+TEST(IdentifyChain, FindsAChainWhoseRbdModelPredictsFastMotionAsTheTrueChainDoes) {
+  Vector noise;
+  const Log slow = ThreeLinkLog(sim::ViaPoints(3, 30.0, 0.01, 30, 1.0, 1.0, 1), 11, &noise);
+  const Log fast = ThreeLinkLog(sim::ViaPoints(3, 10.0, 0.01, 10, 2.5, 1.0, 2), 12, &noise);
+
+  ChainIdentificationOptions options;
+  options.starts = 4;
+  options.search_rows = 300;
+  const ChainIdentificationSummary id = IdentifyChain(slow.X, slow.Y, options);
+  ASSERT_EQ(id.kinematics.size(), NumChainKinematicParameters(3));
+  ASSERT_EQ(id.start_costs.size(), 4u);
+  EXPECT_GE(id.starts_at_best, 1);
+  // The slow log explained to its noise.
+  for (int j = 0; j < 3; ++j) {
+    EXPECT_LT(id.residual_rms[j], 1.15 * noise[j]) << "joint " << j + 1;
+    EXPECT_GT(id.torque_rms[j], 50.0 * noise[j]);
+  }
+
+  // rbd+fri on the identified URDF, as `structgp fit --model rbd+fri --urdf` fits it.
+  FitOptions fit;
+  fit.model.rigid_body = std::make_shared<const RigidBodyChain>(
+      RigidBodyChain::FromUrdfString(id.urdf, {}, "identified.urdf"));
+  const FittedModel model =
+      FitModel(ParseModelSpec("rbd+fri"), slow.X, slow.Y, Vector(), fit);
+  ASSERT_TRUE(model.summary.IsUsable()) << model.summary.message;
+  Matrix mean(fast.X.rows(), 3);
+  RobotModel::Workspace ws = model.model.MakeWorkspace();
+  Vector m(3);
+  for (Eigen::Index i = 0; i < fast.X.rows(); ++i) {
+    ASSERT_EQ(model.model.Predict(fast.X.row(i).transpose(), m, ws), Status::kOk);
+    mean.row(i) = m.transpose();
+  }
+  const Vector identified = RmsOverNoise(mean, fast.Y, noise);
+
+  // The reference: least squares on the true chain's regressor and the true friction bases.
+  const RigidBodyChain truth = sim::ToRigidBodyChain(sim::ThreeLinkArm());
+  auto design = [&](const Matrix& X) {
+    Matrix A = Matrix::Zero(X.rows() * 3, truth.num_parameters() + 6);
+    for (Eigen::Index i = 0; i < X.rows(); ++i) {
+      const Vector x = X.row(i).transpose();
+      A.block(i * 3, 0, 3, truth.num_parameters()) =
+          truth.Regressor(x.head(3), x.segment(3, 3), x.segment(6, 3));
+      for (int j = 0; j < 3; ++j) {
+        A(i * 3 + j, truth.num_parameters() + 2 * j) = x[3 + j];
+        A(i * 3 + j, truth.num_parameters() + 2 * j + 1) = std::tanh(x[3 + j] / 0.01);
+      }
+    }
+    return A;
+  };
+  const Matrix A = design(slow.X);
+  Vector y(slow.X.rows() * 3);
+  for (Eigen::Index i = 0; i < slow.X.rows(); ++i) y.segment(i * 3, 3) = slow.Y.row(i).transpose();
+  const Vector theta = A.colPivHouseholderQr().solve(y);
+  const Vector fast_y = design(fast.X) * theta;
+  Matrix reference(fast.X.rows(), 3);
+  for (Eigen::Index i = 0; i < fast.X.rows(); ++i) reference.row(i) = fast_y.segment(i * 3, 3).transpose();
+  const Vector best = RmsOverNoise(reference, fast.Y, noise);
+  for (int j = 0; j < 3; ++j) {
+    EXPECT_LT(identified[j], 1.25 * best[j] + 0.1) << "joint " << j + 1 << ": identified chain "
+                                                   << identified[j] << ", reference " << best[j];
+  }
+}
+
+TEST(IdentifyChain, RefusesBadInputNamingIt) {
+  const Matrix X = RandomStates(2, 20, 1);
+  Matrix Y = Matrix::Ones(20, 2);
+  auto message = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_NE(message([&] { IdentifyChain(X.leftCols(5), Y); }).find("expected 3 N = 6"),
+            std::string::npos);
+  EXPECT_NE(message([&] { IdentifyChain(X.topRows(10), Y); }).find("10 input rows and 20"),
+            std::string::npos);
+  Matrix bad = X;
+  bad(3, 1) = std::nan("");
+  EXPECT_NE(message([&] { IdentifyChain(bad, Y); }).find("non-finite"), std::string::npos);
+  Y.col(1).setZero();
+  EXPECT_NE(message([&] { IdentifyChain(X, Y); }).find("joint 2 is zero"), std::string::npos);
+  Y.col(1).setOnes();
+  ChainIdentificationOptions o;
+  o.starts = 0;
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("starts >= 1"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace structgp
