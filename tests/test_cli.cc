@@ -334,7 +334,8 @@ TEST(CliEvaluate, CoverageIsTheFractionOfTorquesInsideTheNoisyBandAlsoInCompare)
 
 TEST(Cli, EverySubcommandHasHelp) {
   TempDir dir;
-  for (const char* sub : {"fit", "predict", "evaluate", "diagnose", "compare", "demo", "replay"}) {
+  for (const char* sub :
+       {"fit", "predict", "evaluate", "diagnose", "compare", "demo", "replay", "identify"}) {
     const Result r = RunCli(dir, {sub, "--help"});
     EXPECT_EQ(r.code, 0) << sub;
     EXPECT_TRUE(Contains(r.out, "Example:")) << sub << "\n" << r.out;
@@ -1135,6 +1136,60 @@ TEST(CliUrdf, DemoOnAUrdfRobotFindsTheHiddenFrictionWithRbd) {
   const Result diag = RunCli(dir, {"diagnose", "--model", model, "--data", demo + "/train.csv",
                                    "--json", dir.File("findings.json")});
   ASSERT_EQ(diag.code, 0) << diag.err;
+}
+
+// A robot without its URDF: identify writes one from the demo's slow log of the three-link arm;
+// rbd+fri on it predicts the fast log as rbd+fri on the arm's own URDF does; bad input is
+// refused naming the file, and nothing is written.
+TEST(CliUrdf, IdentifyWritesAUrdfWhoseRbdModelPredictsAsTheRobotsOwn) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--urdf", Urdf("three_link_arm.urdf"), "--out", demo, "--quiet"})
+                .code,
+            0);
+  const std::string urdf = dir.File("robot.urdf"), json = dir.File("identify.json");
+  const Result id = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--out", urdf,
+                                 "--json", json, "--starts", "4", "--threads", "2", "--quiet"});
+  ASSERT_EQ(id.code, 0) << id.err;
+  EXPECT_TRUE(Contains(id.out, "next: structgp fit --data " + demo + "/train.csv --model rbd+fri "
+                               "--urdf " + urdf))
+      << id.out;
+  const Json summary = Json::parse(ReadFile(json));
+  EXPECT_EQ(summary["kinematics"].size(), 8u) << summary.dump(2);
+  EXPECT_EQ(summary["start_costs"].size(), 4u);
+  EXPECT_GE(summary["starts_at_best"].get<int>(), 1);
+  // Joint 2 carries the arm's weight: its residual is the noise, 1% of the largest torque.
+  EXPECT_LT(summary["joints"][1]["residual_rms"].get<double>(),
+            0.02 * summary["joints"][1]["torque_rms"].get<double>())
+      << summary.dump(2);
+  auto test_rms = [&](const std::string& robot, const std::string& name) {
+    const std::string model = dir.File(name + ".json");
+    const Result fit = RunCli(dir, {"fit", "--data", demo + "/train.csv", "--model", "rbd+fri",
+                                    "--urdf", robot, "--out", model, "--quiet"});
+    EXPECT_EQ(fit.code, 0) << fit.err;
+    const Result eval = RunCli(dir, {"evaluate", "--model", model, "--data", demo + "/test.csv",
+                                     "--json", dir.File(name + "_eval.json")});
+    EXPECT_EQ(eval.code, 0) << eval.err;
+    return Json::parse(ReadFile(dir.File(name + "_eval.json")))["overall"]["rms"].get<double>();
+  };
+  const double identified = test_rms(urdf, "identified");
+  const double own = test_rms(Urdf("three_link_arm.urdf"), "own");
+  EXPECT_LT(identified, 1.25 * own) << "identified " << identified << ", own URDF " << own;
+
+  // Bad input: a missing file, currents instead of torques; the URDF stays as it was.
+  const std::string before = ReadFile(urdf);
+  const Result missing = RunCli(dir, {"identify", "--data", dir.File("none.csv"), "--out", urdf});
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_TRUE(Contains(missing.err, "none.csv")) << missing.err;
+  std::string currents = ReadFile(demo + "/train.csv");
+  for (const char* tau : {"tau1", "tau2", "tau3"}) {
+    currents.replace(currents.find(tau), 4, std::string("cur") + tau[3]);
+  }
+  WriteFile(dir.File("currents.csv"), currents);
+  const Result cur = RunCli(dir, {"identify", "--data", dir.File("currents.csv"), "--out", urdf});
+  EXPECT_EQ(cur.code, 2);
+  EXPECT_TRUE(Contains(cur.err, "identify needs joint torques")) << cur.err;
+  EXPECT_EQ(ReadFile(urdf), before);
 }
 
 // With --urdf and a kinematics-free model the demo says the model knows nothing of the robot.

@@ -79,6 +79,7 @@ int Main(int argc, char** argv) {
   commands.push_back(MakeCompareCommand());
   commands.push_back(MakePrepareCommand());
   commands.push_back(MakeReplayCommand());
+  commands.push_back(MakeIdentifyCommand());
   std::vector<CLI::App*> subcommands;
   subcommands.reserve(commands.size());
   for (auto& c : commands) subcommands.push_back(c->Register(&app));

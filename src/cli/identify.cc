@@ -1,0 +1,172 @@
+// structgp identify: a robot's kinematic chain found from a torque log, written as a URDF for
+// the rbd models (rigid_body/chain_identification.h).
+
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "common.h"
+#include "structgp/rigid_body/chain_identification.h"
+
+namespace structgp {
+namespace cli {
+namespace {
+
+class IdentifyCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App* app) override {
+    CLI::App* cmd = app->add_subcommand(
+        "identify",
+        "Find the robot's kinematic chain (where each joint axis lies) from a torque log and "
+        "write it as a URDF, for rbd models of a robot whose URDF is not at hand");
+    cmd->add_option("--data", data_,
+                    "Data: CSV with columns q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN")
+        ->required();
+    cmd->add_option("--out", out_, "URDF file to write (replaced atomically; - for stdout)")
+        ->required();
+    cmd->add_option("--json", json_,
+                    "Also write the summary as JSON: the kinematic parameters, each start's "
+                    "cost and the residual per joint (- for stdout)");
+    cmd->add_flag("--no-friction", no_friction_,
+                  "Fit the rigid body alone (by default viscous and Coulomb friction per joint "
+                  "are fitted beside it, so that friction does not bend the kinematics)");
+    cmd->add_option("--starts", options_.starts,
+                    "Random starts of the search; the start of least cost wins")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    cmd->add_option("--rows", options_.search_rows,
+                    "Evenly spaced rows of the search from each start (each costs a regressor "
+                    "per row and cost evaluation)")
+        ->check(CLI::Range(2, 1000000))
+        ->capture_default_str();
+    cmd->add_option("--refine-rows", options_.refine_rows,
+                    "Evenly spaced rows on which the best start is searched again")
+        ->check(CLI::Range(0, 1000000))
+        ->capture_default_str();
+    cmd->add_option("--seed", options_.seed, "Seed of the random starts")->capture_default_str();
+    cmd->add_option("--name", options_.robot_name, "Robot name in the URDF")
+        ->capture_default_str();
+    cmd->add_option("--threads", options_.num_threads,
+                    "Starts searched at once (the result is the same for any number; default: "
+                    "the machine's hardware threads)")
+        ->check(CLI::Range(1, kMaxThreads));
+    cmd->add_flag("-q,--quiet", quiet_, "No progress lines on stderr");
+    cmd->footer(
+        "The search: Levenberg-Marquardt on the 4N - 4 kinematic parameters (modified\n"
+        "Denavit-Hartenberg, and the lean of joint 1's axis from gravity along -z), the\n"
+        "inertial parameters and friction by least squares at each step; several random starts.\n"
+        "The URDF's inertial values are placeholders: fit them with rbd. Example:\n"
+        "  structgp identify --data train.csv --out robot.urdf\n"
+        "  structgp fit --data train.csv --model rbd+fri --urdf robot.urdf --out model.json");
+    return cmd;
+  }
+
+  int Run() override {
+    CheckOutputPath("--out", out_);
+    if (!json_.empty()) CheckOutputPath("--json", json_);
+    std::FILE* const text_out = TextStream({{"--out", out_}, {"--json", json_}});
+    options_.friction = !no_friction_;
+    if (options_.num_threads < 1) options_.num_threads = MachineThreads();
+    const Progress progress("identify", quiet_);
+    progress.Line("reading " + data_);
+    const RobotData data = ReadData(data_);
+    if (data.target == RobotData::Target::kCurrent) {
+      throw UsageError(data_ + ": has motor currents (cur1..cur" +
+                       std::to_string(data.num_joints) +
+                       "), identify needs joint torques (tau1..): the chain's inertial "
+                       "parameters act on every joint's torque, and a current's gain per joint "
+                       "is not known");
+    }
+    const int N = data.num_joints;
+    progress.Line("searching the kinematics of " + std::to_string(N) + " joints from " +
+                  std::to_string(options_.starts) + " starts on " +
+                  std::to_string(std::min<long>(data.size(), options_.search_rows)) + " rows (" +
+                  std::to_string(options_.num_threads) + " at once)");
+    const ChainIdentificationSummary s = IdentifyChain(data.X, data.Y, options_);
+    progress.Line("done");
+
+    const std::vector<std::string> names = ChainKinematicNames(N);
+    nlohmann::json doc;
+    doc["data"] = data_;
+    doc["num_samples"] = data.size();
+    doc["friction"] = options_.friction;
+    doc["kinematics"] = nlohmann::json::object();
+    for (size_t k = 0; k < names.size(); ++k) {
+      doc["kinematics"][names[k]] = s.kinematics[static_cast<Eigen::Index>(k)];
+    }
+    doc["start_costs"] = s.start_costs;
+    doc["best_start"] = s.best_start + 1;
+    doc["starts_at_best"] = s.starts_at_best;
+    if (std::isfinite(s.refined_cost)) doc["refined_cost"] = s.refined_cost;
+    doc["joints"] = nlohmann::json::array();
+
+    std::fprintf(text_out, "data   %s: %d samples, %d joints\n", data_.c_str(), data.size(), N);
+    std::fprintf(text_out,
+                 "search %d starts on %d rows: best cost %.4g (start %d), %d of %d starts "
+                 "reached it",
+                 options_.starts, std::min(data.size(), options_.search_rows),
+                 s.start_costs[static_cast<size_t>(s.best_start)], s.best_start + 1,
+                 s.starts_at_best, options_.starts);
+    if (std::isfinite(s.refined_cost)) {
+      std::fprintf(text_out, "; refined on %d rows: %.4g",
+                   std::min(data.size(), options_.refine_rows), s.refined_cost);
+    }
+    std::fprintf(text_out, "\n       (cost: the mean squared residual, each joint's torque divided "
+                           "by its RMS)\n");
+    std::vector<std::vector<std::string>> rows = {
+        {"joint", "torque RMS", "residual RMS", "residual / torque"}};
+    for (int j = 0; j < N; ++j) {
+      doc["joints"].push_back({{"joint", j + 1},
+                               {"torque_rms", s.torque_rms[j]},
+                               {"residual_rms", s.residual_rms[j]}});
+      rows.push_back({std::to_string(j + 1), Format("%.4g", s.torque_rms[j]),
+                      Format("%.4g", s.residual_rms[j]),
+                      Percent(s.residual_rms[j] / s.torque_rms[j])});
+    }
+    std::fputs(Table(rows).c_str(), text_out);
+    std::string kinematics;
+    for (size_t k = 0; k < names.size(); ++k) {
+      kinematics += (k ? " " : "") + names[k] + "=" +
+                    Format("%.4g", s.kinematics[static_cast<Eigen::Index>(k)]);
+    }
+    std::fprintf(text_out, "kinematics (rad, m): %s\n", kinematics.c_str());
+    if (s.starts_at_best < 2 && options_.starts > 1) {
+      std::fprintf(text_out,
+                   "warning: only one start reached the least cost; the search may not have "
+                   "found the best chain (try --starts %d)\n",
+                   2 * options_.starts);
+    }
+    const std::vector<OutputFile> outputs = [&] {
+      std::vector<OutputFile> o = {{"--out", out_, s.urdf}};
+      if (!json_.empty()) o.push_back({"--json", json_, doc.dump(2) + "\n"});
+      return o;
+    }();
+    WriteOutputs(outputs);
+    PrintWritten(text_out, outputs);
+    if (!IsStdout(out_)) {
+      std::fprintf(text_out, "next: structgp fit --data %s --model rbd%s --urdf %s --out model.json\n",
+                   data_.c_str(), options_.friction ? "+fri" : "", out_.c_str());
+    }
+    return kExitOk;
+  }
+
+ private:
+  std::string data_, out_, json_;
+  bool no_friction_ = false;
+  bool quiet_ = false;
+  ChainIdentificationOptions options_ = [] {
+    ChainIdentificationOptions o;
+    o.num_threads = 0;  // the machine's, unless --threads
+    return o;
+  }();
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeIdentifyCommand() { return std::make_unique<IdentifyCommand>(); }
+
+}  // namespace cli
+}  // namespace structgp
