@@ -118,6 +118,7 @@
 #include "structgp/io/model_file.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/model/model_spec.h"
+#include "structgp/rigid_body/chain_identification.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/robot.h"
@@ -563,7 +564,9 @@ std::string ExpectedText(const std::vector<Expected>& expected) {
 SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
                   const std::string& model_name, const SimLogs& scaled, const Flags& f) {
   const auto start = std::chrono::steady_clock::now();
-  const ModelSpec spec = ParseModelSpec(model_name);
+  // "chain": rbd on the chain `structgp identify` finds from the training log (no URDF).
+  const bool identified = model_name == "chain";
+  const ModelSpec spec = ParseModelSpec(identified ? "rbd" : model_name);
   const bool rigid_body = spec.base == BaseModel::kRbd || spec.rigid_body_features;
   // Models with rigid-body parameters share them across joints, and the Lagrangian models
   // explain every joint by one M(q) and V(q): torques scaled per joint are not in their class,
@@ -587,7 +590,19 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   row.model = model_name;
   row.expected = ExpectedText(logs.expected);
   std::shared_ptr<const RigidBodyChain> chain;
-  if (rigid_body) chain = logs.urdf;
+  if (identified) {
+    ChainIdentificationOptions o;
+    o.num_threads = g_threads;
+    const ChainIdentificationSummary id = IdentifyChain(logs.train.X, logs.train.Y, o);
+    chain = std::make_shared<const RigidBodyChain>(
+        RigidBodyChain::FromUrdfString(id.urdf, {}, "identified.urdf"));
+    std::fprintf(stderr, "%s %s chain: identified in %.0f s, %d of %d starts at the best cost %.3g\n",
+                 robot_name.c_str(), case_name.c_str(), Seconds(start), id.starts_at_best,
+                 static_cast<int>(id.start_costs.size()),
+                 id.start_costs[static_cast<size_t>(id.best_start)]);
+  } else if (rigid_body) {
+    chain = logs.urdf;
+  }
   const Fit base = FitSpec(spec, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows);
   if (!base.model) {
     row.note = base.error;
@@ -1148,7 +1163,7 @@ int Run(const Flags& flags, int argc, char** argv) {
   // Names are checked before anything runs.
   for (const std::string& c : f.cases) MakeSimCase(c, 7, 1);
   for (const std::string& r : f.robots) MakeRobot(r);
-  for (const std::string& m : f.models) ParseModelSpec(m);
+  for (const std::string& m : f.models) ParseModelSpec(m == "chain" ? "rbd" : m);
   const ModelSpec real_spec = ParseModelSpec(f.real_model);
   if (real_spec.base == BaseModel::kRbd || real_spec.rigid_body_features) {
     throw std::invalid_argument("--real-model: the real logs have no URDF here; expected a model "
@@ -1211,7 +1226,7 @@ int main(int argc, char** argv) {
           "threads of the fits and refits of this program (as structgp fit --threads)");
   AddListFlag(&app, "--cases", &f.cases,
               "none, spring, payload, coulomb, viscous, stribeck, cogging, drift, combined");
-  AddListFlag(&app, "--models", &f.models, "models of part A: pol, rbd (simulated chain as URDF), ...");
+  AddListFlag(&app, "--models", &f.models, "models of part A: pol, rbd (simulated chain as URDF), chain (rbd on the chain identified from the training log), ...");
   AddFlag(&app, "--joint", &f.joint, "joint of the single hidden effects (cogging: joint 1)")
       ->check(AtLeast(1));
   AddFlag(&app, "--train-seconds", &f.train_seconds, "length of the slow training log, s")

@@ -37,6 +37,7 @@
 #include "structgp/online/online_learner.h"
 #include "structgp/report/report.h"
 #include "structgp/report/report_data.h"
+#include "structgp/rigid_body/chain_identification.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/hidden_effect.h"
 #include "structgp/sim/robot.h"
@@ -794,6 +795,54 @@ void BindDiagnosis(py::module_& m) {
       "are from the training states. report=PATH also writes the HTML report. "
       "autocorrelation: 'bartlett', 'prewhitening' or 'none' (DiagnosisOptions). "
       "Raises ValueError for bad input, structgp.Error when the diagnosis fails.");
+
+  m.def(
+      "identify_chain",
+      [](const py::object& X, const py::object& Y, bool friction, int starts, int rows,
+         int refine_rows, std::uint64_t seed, int threads, const std::string& name) {
+        const Matrix states = AsMatrix(X, "X"), torques = AsMatrix(Y, "Y");
+        ChainIdentificationOptions o;
+        o.friction = friction;
+        o.starts = starts;
+        o.search_rows = rows;
+        o.refine_rows = refine_rows;
+        o.seed = seed;
+        o.num_threads = CheckedThreads(threads);
+        o.robot_name = name;
+        ChainIdentificationSummary s;
+        {
+          py::gil_scoped_release release;
+          s = IdentifyChain(states, torques, o);
+        }
+        py::dict kinematics;
+        const std::vector<std::string> names = ChainKinematicNames(static_cast<int>(torques.cols()));
+        for (size_t k = 0; k < names.size(); ++k) {
+          kinematics[py::str(names[k])] = s.kinematics[static_cast<Eigen::Index>(k)];
+        }
+        py::dict out;
+        out["urdf"] = s.urdf;
+        out["kinematics"] = kinematics;
+        out["start_costs"] = s.start_costs;
+        out["best_start"] = s.best_start;
+        out["starts_at_best"] = s.starts_at_best;
+        out["refined_cost"] = s.refined_cost;
+        out["torque_rms"] = std::vector<double>(s.torque_rms.data(), s.torque_rms.data() + s.torque_rms.size());
+        out["residual_rms"] =
+            std::vector<double>(s.residual_rms.data(), s.residual_rms.data() + s.residual_rms.size());
+        return out;
+      },
+      py::arg("X"), py::arg("Y"), py::kw_only(), py::arg("friction") = true,
+      py::arg("starts") = ChainIdentificationOptions().starts,
+      py::arg("rows") = ChainIdentificationOptions().search_rows,
+      py::arg("refine_rows") = ChainIdentificationOptions().refine_rows,
+      py::arg("seed") = ChainIdentificationOptions().seed, py::arg("threads") = 1,
+      py::arg("name") = ChainIdentificationOptions().robot_name,
+      "The robot's kinematic chain found from its torques, as `structgp identify`: X (q, qd, qdd "
+      "of N joints), Y (N torques). Returns a dict: 'urdf' (the chain as a URDF document, "
+      "placeholder inertias: write it to a file and fit Model('rbd+fri', urdf=PATH)), "
+      "'kinematics' (name -> value, modified DH), 'start_costs', 'best_start', 'starts_at_best', "
+      "'refined_cost', 'torque_rms' and 'residual_rms' per joint. Raises ValueError for bad "
+      "input.");
 
   m.def(
       "diagnose_loop",

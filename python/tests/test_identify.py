@@ -1,0 +1,40 @@
+"""identify_chain: the module finds the same chain as `structgp identify` on the demo's slow log
+(same options and seed), and its URDF serves Model('rbd+fri', urdf=...)."""
+
+import json
+
+import numpy as np
+import pytest
+
+import structgp
+from conftest import run
+
+
+def test_identify_chain_agrees_with_the_program_and_its_urdf_fits(cli, demo, tmp_path):
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    test = structgp.read_robot_csv(str(demo / "test.csv"))
+    found = structgp.identify_chain(train.X, train.Y, starts=3, threads=2)
+    run(cli, "identify", "--data", demo / "train.csv", "--out", tmp_path / "cli.urdf",
+        "--json", tmp_path / "cli.json", "--starts", 3, "--threads", 1, "--quiet")
+    summary = json.loads((tmp_path / "cli.json").read_text())
+    assert list(found["kinematics"]) == ["tilt", "theta1", "alpha2", "a2"]
+    for name, value in found["kinematics"].items():
+        assert value == pytest.approx(summary["kinematics"][name], abs=1e-12)
+    assert found["urdf"] == (tmp_path / "cli.urdf").read_text()
+    assert found["best_start"] + 1 == summary["best_start"]
+    assert len(found["start_costs"]) == 3
+
+    path = tmp_path / "robot.urdf"
+    path.write_text(found["urdf"])
+    model = structgp.Model("rbd+fri", urdf=str(path)).fit(train.X, train.Y)
+    mean = model.predict(test.X)
+    nmse = np.mean((mean - test.Y) ** 2, axis=0) / np.var(test.Y, axis=0)
+    assert np.all(nmse < 1e-2), nmse
+
+
+def test_identify_chain_refuses_bad_input():
+    X = np.zeros((10, 6))
+    with pytest.raises(ValueError, match="expected 3 N = 6"):
+        structgp.identify_chain(X[:, :5], np.ones((10, 2)))
+    with pytest.raises(ValueError, match="threads"):
+        structgp.identify_chain(X, np.ones((10, 2)), threads=0)
