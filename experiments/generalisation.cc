@@ -87,8 +87,8 @@ namespace {
 using internal::Format;
 
 int g_chain_threads = 1;
-int g_chain_starts = 8;
-int g_chain_rows = 400;
+int g_chain_starts = ChainIdentificationOptions().starts;
+int g_chain_rows = ChainIdentificationOptions().search_rows;
 
 constexpr double kDt = 0.01;           // s
 constexpr int kVias = 10;

@@ -5,7 +5,9 @@
 // in the other DH convention, a chain whose rbd+fri model predicts a fast log of another path
 // as well as least squares on the true chain's regressor.
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -173,11 +175,14 @@ TEST(IdentifyChain, FindsAChainWhoseRbdModelPredictsFastMotionAsTheTrueChainDoes
   const Log fast = ThreeLinkLog(sim::ViaPoints(3, 10.0, 0.01, 10, 2.5, 1.0, 2), 12, &noise);
 
   ChainIdentificationOptions options;
-  options.starts = 4;
+  options.starts = 12;  // screened: the 3 best searched to the end
+  options.kept_starts = 3;
   options.search_rows = 300;
   const ChainIdentificationSummary id = IdentifyChain(slow.X, slow.Y, options);
   ASSERT_EQ(id.kinematics.size(), NumChainKinematicParameters(3));
-  ASSERT_EQ(id.start_costs.size(), 4u);
+  ASSERT_EQ(id.start_costs.size(), 3u);
+  ASSERT_EQ(id.starts.size(), 3u);
+  EXPECT_NE(std::find(id.starts.begin(), id.starts.end(), id.best_start), id.starts.end());
   EXPECT_GE(id.starts_at_best, 1);
   // The slow log explained to its noise.
   for (int j = 0; j < 3; ++j) {

@@ -1,6 +1,7 @@
 // structgp identify: a robot's kinematic chain found from a torque log, written as a URDF for
 // the rbd models (rigid_body/chain_identification.h).
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -34,8 +35,12 @@ class IdentifyCommand : public Command {
                   "Fit the rigid body alone (by default viscous and Coulomb friction per joint "
                   "are fitted beside it, so that friction does not bend the kinematics)");
     cmd->add_option("--starts", options_.starts,
-                    "Random starts of the search; the start of least cost wins")
-        ->check(CLI::Range(1, 1000))
+                    "Random starts of the search, each screened by a few iterations on few rows")
+        ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    cmd->add_option("--kept-starts", options_.kept_starts,
+                    "Screened starts of least cost searched to the end; the best of them wins")
+        ->check(CLI::Range(1, 100000))
         ->capture_default_str();
     cmd->add_option("--rows", options_.search_rows,
                     "Evenly spaced rows of the search from each start (each costs a regressor "
@@ -82,8 +87,7 @@ class IdentifyCommand : public Command {
     }
     const int N = data.num_joints;
     progress.Line("searching the kinematics of " + std::to_string(N) + " joints from " +
-                  std::to_string(options_.starts) + " starts on " +
-                  std::to_string(std::min<long>(data.size(), options_.search_rows)) + " rows (" +
+                  std::to_string(options_.starts) + " starts (" +
                   std::to_string(options_.num_threads) + " at once)");
     const ChainIdentificationSummary s = IdentifyChain(data.X, data.Y, options_);
     progress.Line("done");
@@ -97,6 +101,9 @@ class IdentifyCommand : public Command {
     for (size_t k = 0; k < names.size(); ++k) {
       doc["kinematics"][names[k]] = s.kinematics[static_cast<Eigen::Index>(k)];
     }
+    doc["starts"] = options_.starts;
+    doc["kept_starts"] = nlohmann::json::array();
+    for (int k : s.starts) doc["kept_starts"].push_back(k + 1);
     doc["start_costs"] = s.start_costs;
     doc["best_start"] = s.best_start + 1;
     doc["starts_at_best"] = s.starts_at_best;
@@ -104,12 +111,20 @@ class IdentifyCommand : public Command {
     doc["joints"] = nlohmann::json::array();
 
     std::fprintf(text_out, "data   %s: %d samples, %d joints\n", data_.c_str(), data.size(), N);
-    std::fprintf(text_out,
-                 "search %d starts on %d rows: best cost %.4g (start %d), %d of %d starts "
-                 "reached it",
-                 options_.starts, std::min(data.size(), options_.search_rows),
-                 s.start_costs[static_cast<size_t>(s.best_start)], s.best_start + 1,
-                 s.starts_at_best, options_.starts);
+    const int kept = static_cast<int>(s.starts.size());
+    if (kept < options_.starts) {
+      std::fprintf(text_out, "search %d starts screened (%d iterations on %d rows), the %d best "
+                             "searched on %d rows: ",
+                   options_.starts, options_.screen_iterations,
+                   std::min(data.size(), options_.screen_rows), kept,
+                   std::min(data.size(), options_.search_rows));
+    } else {
+      std::fprintf(text_out, "search %d starts on %d rows: ", kept,
+                   std::min(data.size(), options_.search_rows));
+    }
+    std::fprintf(text_out, "best cost %.4g (start %d), %d of %d reached it",
+                 *std::min_element(s.start_costs.begin(), s.start_costs.end()), s.best_start + 1,
+                 s.starts_at_best, kept);
     if (std::isfinite(s.refined_cost)) {
       std::fprintf(text_out, "; refined on %d rows: %.4g",
                    std::min(data.size(), options_.refine_rows), s.refined_cost);
@@ -133,7 +148,7 @@ class IdentifyCommand : public Command {
                     Format("%.4g", s.kinematics[static_cast<Eigen::Index>(k)]);
     }
     std::fprintf(text_out, "kinematics (rad, m): %s\n", kinematics.c_str());
-    if (s.starts_at_best < 2 && options_.starts > 1) {
+    if (s.starts_at_best < 2 && kept > 1) {
       std::fprintf(text_out,
                    "warning: only one start reached the least cost; the search may not have "
                    "found the best chain (try --starts %d)\n",

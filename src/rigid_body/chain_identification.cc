@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -285,9 +286,11 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   }
   if (!(options.friction_width > 0.0) || !std::isfinite(options.friction_width) ||
       options.search_rows < 2 || options.starts < 1 || options.max_iterations < 1 ||
+      options.kept_starts < 1 || options.screen_rows < 2 || options.screen_iterations < 1 ||
       options.num_threads < 1) {
     throw std::invalid_argument(
         "IdentifyChain: options out of range (friction_width > 0, search_rows >= 2, starts >= 1, "
+        "kept_starts >= 1, screen_rows >= 2, screen_iterations >= 1, "
         "max_iterations >= 1, num_threads >= 1)");
   }
   ChainIdentificationSummary summary;
@@ -303,27 +306,53 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   search.N = N;
   search.options = &options;
   search.scale = summary.torque_rms;
-  SetRows(X, Y, options.search_rows, &search);
 
+  // Screening: every random start a few iterations on few rows; the kept_starts of least cost
+  // go on to the end on search_rows rows.
   std::mt19937_64 rng(options.seed);
   std::vector<Vector> found;
   for (int s = 0; s < options.starts; ++s) found.push_back(RandomStart(N, &rng));
-  summary.start_costs.assign(found.size(), std::numeric_limits<double>::infinity());
-  const int workers = std::min(options.num_threads, options.starts);
-  internal::RunWorkers(workers, [&](int w) {
-    for (size_t s = static_cast<size_t>(w); s < found.size(); s += static_cast<size_t>(workers)) {
-      summary.start_costs[s] = Minimise(search, options.max_iterations, &found[s]);
-    }
-  });
+  std::vector<double> screened(found.size(), std::numeric_limits<double>::infinity());
+  auto run = [&](const std::vector<size_t>& which, int iterations, std::vector<double>* costs) {
+    const int workers = std::max(1, std::min<int>(options.num_threads, static_cast<int>(which.size())));
+    internal::RunWorkers(workers, [&](int w) {
+      for (size_t i = static_cast<size_t>(w); i < which.size(); i += static_cast<size_t>(workers)) {
+        (*costs)[which[i]] = Minimise(search, iterations, &found[which[i]]);
+      }
+    });
+  };
+  std::vector<size_t> all(found.size());
+  std::iota(all.begin(), all.end(), size_t{0});
+  std::vector<size_t> kept = all;
+  if (options.kept_starts < options.starts) {
+    SetRows(X, Y, options.screen_rows, &search);
+    run(all, options.screen_iterations, &screened);
+    std::stable_sort(kept.begin(), kept.end(),
+                     [&](size_t a, size_t b) { return screened[a] < screened[b]; });
+    kept.resize(static_cast<size_t>(options.kept_starts));
+  }
+  SetRows(X, Y, options.search_rows, &search);
+  std::vector<double> costs(found.size(), std::numeric_limits<double>::infinity());
+  run(kept, options.max_iterations, &costs);
+  for (size_t i : kept) {
+    summary.starts.push_back(static_cast<int>(i));
+    summary.start_costs.push_back(costs[i]);
+  }
+  std::vector<Vector> kept_kinematics;
+  for (size_t i : kept) kept_kinematics.push_back(found[i]);
+  found = std::move(kept_kinematics);
   summary.best_start = static_cast<int>(
       std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
       summary.start_costs.begin());
   const double best = summary.start_costs[static_cast<size_t>(summary.best_start)];
+  summary.best_start = summary.starts[static_cast<size_t>(summary.best_start)];
   if (!std::isfinite(best)) {
     throw std::runtime_error("IdentifyChain: no start gave a chain whose torques could be fitted");
   }
   for (double c : summary.start_costs) summary.starts_at_best += c <= 1.01 * best ? 1 : 0;
-  summary.kinematics = found[static_cast<size_t>(summary.best_start)];
+  summary.kinematics = found[static_cast<size_t>(
+      std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
+      summary.start_costs.begin())];
   // The best start refined on more rows: the search rows' noise moves the minimum a little.
   if (options.refine_rows > options.search_rows && X.rows() > options.search_rows) {
     SetRows(X, Y, options.refine_rows, &search);

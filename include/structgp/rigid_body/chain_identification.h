@@ -12,9 +12,9 @@
 /// (armature included) and, optionally, viscous and Coulomb friction per joint. For fixed
 /// kinematics the torques are linear in the inertial parameters and friction coefficients, so
 /// least squares eliminates them (variable projection); the kinematics are searched by
-/// Levenberg-Marquardt (Ceres, forward differences) from several random starts on evenly spaced
-/// rows, each joint's torque divided by its RMS; the start of least cost wins and is refined on
-/// more rows.
+/// Levenberg-Marquardt (Ceres, forward differences) from many random starts on evenly spaced
+/// rows, each joint's torque divided by its RMS: every start a few iterations on few rows, the
+/// best of them to the end; the start of least cost wins and is refined on more rows.
 ///
 /// Kinematic parameters (ChainKinematicNames), modified DH (J. J. Craig): the frame of joint i
 /// is that of joint i-1 moved by RotX(alpha_i) TransX(a_i) RotZ(theta_i) TransZ(d_i), and joint i
@@ -49,9 +49,14 @@ struct ChainIdentificationOptions {
   /// Evenly spaced rows on which the best start is searched again to the end (more than
   /// search_rows; less or equal: no refinement).
   int refine_rows = 2000;
-  /// Random starts of the search (>= 1), and the generator's seed.
-  int starts = 8;
+  /// Random starts (>= 1), and the generator's seed. Each is screened: screen_iterations
+  /// iterations on screen_rows evenly spaced rows; the kept_starts of least cost then go on to
+  /// the end on search_rows rows (all of them when kept_starts >= starts: no screening).
+  int starts = 64;
   std::uint64_t seed = 1;
+  int kept_starts = 8;
+  int screen_rows = 150;
+  int screen_iterations = 15;
   /// Levenberg-Marquardt iterations per start (>= 1).
   int max_iterations = 100;
   /// Starts searched at once (>= 1).
@@ -63,10 +68,13 @@ struct ChainIdentificationOptions {
 struct ChainIdentificationSummary {
   /// The kinematic parameters of the best start (ChainKinematicNames).
   Vector kinematics;
-  /// Each start's final cost: the mean over the search rows and joints of the squared residual
-  /// of the least squares, each joint's torque divided by its RMS (so 1e-4 is a residual of 1% of
-  /// every joint's torque). Ordered as the starts.
+  /// The kept starts (0-based indices among the random starts, least screening cost first) and
+  /// each one's final cost: the mean over the search rows and joints of the squared residual of
+  /// the least squares, each joint's torque divided by its RMS (so 1e-4 is a residual of 1% of
+  /// every joint's torque).
+  std::vector<int> starts;
   std::vector<double> start_costs;
+  /// The random start (0-based) whose kinematics won.
   int best_start = -1;
   /// The best start's cost after the refinement on refine_rows rows (NaN without it).
   double refined_cost = std::numeric_limits<double>::quiet_NaN();
@@ -75,7 +83,7 @@ struct ChainIdentificationSummary {
   /// explain the rest).
   Vector torque_rms;
   Vector residual_rms;
-  /// Starts whose cost is within 1% of the best one's (the same minimum found again).
+  /// Kept starts whose cost is within 1% of the best one's (the same minimum found again).
   int starts_at_best = 0;
   /// The identified chain as a URDF document (placeholder inertias: 1 kg, 0.01 kg m^2).
   std::string urdf;
