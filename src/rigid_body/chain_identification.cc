@@ -127,24 +127,29 @@ struct LengthPull {
   }
 };
 
-// Twists near 0 or +-pi/2 (most arms'), angles about axes anywhere, offsets within 0.4 m, the
-// first axis near the vertical.
+// Starts drawn as arms are built: twists 0 or +-pi/2, angles about the axes a multiple of pi/2
+// or anywhere, and each length 0 (intersecting or coplanar axes) or within 0.5 m, each half
+// the time; the first axis vertical (tilt 0) or horizontal (tilt pi/2), three times in four
+// vertical.
 Vector RandomStart(int N, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::uniform_int_distribution<int> quarter(-1, 1);
-  const auto twist = [&] { return M_PI / 2 * quarter(*rng) + 0.1 * u(*rng); };
+  std::uniform_int_distribution<int> quarter(-1, 1), turn(-1, 2);
+  std::bernoulli_distribution half(0.5), mostly(0.75);
+  const auto twist = [&] { return M_PI / 2 * quarter(*rng); };
+  const auto angle = [&] { return half(*rng) ? M_PI / 2 * turn(*rng) : M_PI * u(*rng); };
+  const auto length = [&] { return half(*rng) ? 0.0 : 0.5 * u(*rng); };
   Vector k(NumChainKinematicParameters(N));
-  k[0] = 0.1 * u(*rng);
+  k[0] = mostly(*rng) ? 0.0 : M_PI / 2;
   if (N >= 2) {
-    k[1] = M_PI * u(*rng);
+    k[1] = angle();
     k[2] = twist();
-    k[3] = 0.3 * u(*rng);
+    k[3] = length();
     for (int i = 2; i <= N - 1; ++i) {
       const int o = 4 + 4 * (i - 2);
-      k[o] = M_PI * u(*rng);
-      k[o + 1] = 0.4 * u(*rng);
+      k[o] = angle();
+      k[o + 1] = length();
       k[o + 2] = twist();
-      k[o + 3] = 0.4 * u(*rng);
+      k[o + 3] = length();
     }
   }
   return k;
@@ -353,6 +358,24 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   summary.kinematics = found[static_cast<size_t>(
       std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
       summary.start_costs.begin())];
+  // Moves out of a local minimum: each length of the best chain set to 0 in turn (most arms
+  // have intersecting or coplanar axes, which a search from a random start can miss) and the
+  // search run again from there; a move that lowers the cost by 1% is kept.
+  if (options.length_moves) {
+    double cost = best;
+    for (Eigen::Index i = 0; i < summary.kinematics.size(); ++i) {
+      if (!IsLength(static_cast<int>(i)) || std::abs(summary.kinematics[i]) < 0.02) continue;
+      Vector moved = summary.kinematics;
+      moved[i] = 0.0;
+      const double c = Minimise(search, options.max_iterations, &moved);
+      if (c < 0.99 * cost) {
+        cost = c;
+        summary.kinematics = moved;
+        ++summary.moves_kept;
+      }
+    }
+    summary.moved_cost = cost;
+  }
   // The best start refined on more rows: the search rows' noise moves the minimum a little.
   if (options.refine_rows > options.search_rows && X.rows() > options.search_rows) {
     SetRows(X, Y, options.refine_rows, &search);

@@ -57,6 +57,10 @@ struct ChainIdentificationOptions {
   int kept_starts = 8;
   int screen_rows = 150;
   int screen_iterations = 15;
+  /// After the starts: each length of the best chain set to 0 in turn and searched again from
+  /// there, kept when the cost falls by 1% (intersecting and coplanar axes that a random start
+  /// misses).
+  bool length_moves = true;
   /// Levenberg-Marquardt iterations per start (>= 1).
   int max_iterations = 100;
   /// Starts searched at once (>= 1).
@@ -76,6 +80,9 @@ struct ChainIdentificationSummary {
   std::vector<double> start_costs;
   /// The random start (0-based) whose kinematics won.
   int best_start = -1;
+  /// The cost after the length moves, and how many were kept (NaN, 0 without them).
+  double moved_cost = std::numeric_limits<double>::quiet_NaN();
+  int moves_kept = 0;
   /// The best start's cost after the refinement on refine_rows rows (NaN without it).
   double refined_cost = std::numeric_limits<double>::quiet_NaN();
   /// Per joint, in the torques' units: the RMS of the torque, and of the least-squares residual
