@@ -89,6 +89,7 @@ using internal::Format;
 int g_chain_threads = 1;
 int g_chain_starts = ChainIdentificationOptions().starts;
 int g_chain_rows = ChainIdentificationOptions().search_rows;
+std::vector<double> g_chain_initial;
 
 constexpr double kDt = 0.01;           // s
 constexpr int kVias = 10;
@@ -540,6 +541,10 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     o.num_threads = g_chain_threads;
     o.starts = g_chain_starts;
     o.search_rows = g_chain_rows;
+    if (!g_chain_initial.empty()) {
+      o.initial_kinematics = Eigen::Map<const Vector>(g_chain_initial.data(),
+                                                      static_cast<Eigen::Index>(g_chain_initial.size()));
+    }
     const ChainIdentificationSummary id = IdentifyChain(c.train.X, c.train.Y, o);
     const auto chain =
         std::make_shared<const RigidBodyChain>(RigidBodyChain::FromUrdfString(id.urdf));
@@ -805,6 +810,9 @@ int main(int argc, char** argv) {
   structgp::AddFlag(&app, "--chain-starts", &structgp::g_chain_starts,
                     "chain: starts of the kinematic search")
       ->check(structgp::AtLeast(1));
+  structgp::AddFlag(&app, "--chain-initial", &structgp::g_chain_initial,
+                    "chain: a start of one's own, the kinematic parameters (comma-separated)")
+      ->delimiter(',');
   structgp::AddFlag(&app, "--chain-rows", &structgp::g_chain_rows,
                     "chain: evenly spaced rows of the kinematic search")
       ->check(structgp::AtLeast(2));

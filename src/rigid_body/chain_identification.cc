@@ -51,12 +51,17 @@ std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
 }
 
 // Least squares of the inertial parameters (and friction) on the design A (rows scaled), with a
-// ridge of 1e-9 of the normal matrix's mean diagonal (the regressor has directions no motion
-// shows: the minimum-norm answer there, and a cost that is smooth in the kinematics).
+// ridge of 1e-9 of each column's own squared norm (at least 1e-12 of the mean one): the
+// regressor has directions no motion shows, where this gives the minimum-norm answer and a cost
+// that is smooth in the kinematics. Relative to each column, since the columns' norms spread
+// over ten orders of magnitude (a light wrist link's inertias against a heavy link's mass on a
+// joint scaled by its small torque): a ridge relative to the mean column would bias the light
+// ones by far more than the noise.
 Vector Solve(const Matrix& A, const Vector& b) {
   Matrix G = A.transpose() * A;
-  const double mean_diagonal = std::max(G.diagonal().mean(), std::numeric_limits<double>::min());
-  G.diagonal().array() += 1e-9 * mean_diagonal;
+  const double floor =
+      1e-12 * std::max(G.diagonal().mean(), std::numeric_limits<double>::min());
+  G.diagonal().array() += 1e-9 * G.diagonal().array().max(floor);
   return G.ldlt().solve(A.transpose() * b);
 }
 
@@ -298,6 +303,14 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
         "kept_starts >= 1, screen_rows >= 2, screen_iterations >= 1, "
         "max_iterations >= 1, num_threads >= 1)");
   }
+  if (options.initial_kinematics.size() != 0 &&
+      (options.initial_kinematics.size() != NumChainKinematicParameters(N) ||
+       !options.initial_kinematics.allFinite())) {
+    throw std::invalid_argument("IdentifyChain: initial_kinematics has " +
+                                std::to_string(options.initial_kinematics.size()) +
+                                " entries (finite), expected " +
+                                std::to_string(NumChainKinematicParameters(N)));
+  }
   ChainIdentificationSummary summary;
   summary.torque_rms = (Y.colwise().squaredNorm() / static_cast<double>(Y.rows())).cwiseSqrt().transpose();
   for (int j = 0; j < N; ++j) {
@@ -335,6 +348,10 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     std::stable_sort(kept.begin(), kept.end(),
                      [&](size_t a, size_t b) { return screened[a] < screened[b]; });
     kept.resize(static_cast<size_t>(options.kept_starts));
+  }
+  if (options.initial_kinematics.size() > 0) {
+    found.push_back(options.initial_kinematics);
+    kept.push_back(found.size() - 1);
   }
   SetRows(X, Y, options.search_rows, &search);
   std::vector<double> costs(found.size(), std::numeric_limits<double>::infinity());

@@ -57,6 +57,9 @@ struct ChainIdentificationOptions {
   int kept_starts = 8;
   int screen_rows = 150;
   int screen_iterations = 15;
+  /// A start of one's own (NumChainKinematicParameters entries, or empty): kinematics known
+  /// roughly, searched to the end beside the kept random starts (it is start number `starts`).
+  Vector initial_kinematics;
   /// After the starts: each length of the best chain set to 0 in turn and searched again from
   /// there, kept when the cost falls by 1% (intersecting and coplanar axes that a random start
   /// misses).
