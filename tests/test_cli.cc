@@ -1149,14 +1149,16 @@ TEST(CliUrdf, IdentifyWritesAUrdfWhoseRbdModelPredictsAsTheRobotsOwn) {
             0);
   const std::string urdf = dir.File("robot.urdf"), json = dir.File("identify.json");
   const Result id = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--out", urdf,
-                                 "--json", json, "--starts", "4", "--threads", "2", "--quiet"});
+                                 "--json", json, "--starts", "6", "--kept-starts", "2",
+                                 "--threads", "2", "--quiet"});
   ASSERT_EQ(id.code, 0) << id.err;
   EXPECT_TRUE(Contains(id.out, "next: structgp fit --data " + demo + "/train.csv --model rbd+fri "
                                "--urdf " + urdf))
       << id.out;
   const Json summary = Json::parse(ReadFile(json));
   EXPECT_EQ(summary["kinematics"].size(), 8u) << summary.dump(2);
-  EXPECT_EQ(summary["start_costs"].size(), 4u);
+  EXPECT_EQ(summary["start_costs"].size(), 2u);  // 6 screened, the 2 best searched
+  EXPECT_EQ(summary["kept_starts"].size(), 2u);
   EXPECT_GE(summary["starts_at_best"].get<int>(), 1);
   // Joint 2 carries the arm's weight: its residual is the noise, 1% of the largest torque.
   EXPECT_LT(summary["joints"][1]["residual_rms"].get<double>(),
