@@ -1,6 +1,7 @@
 #include "structgp/internal/text.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cstdarg>
 #include <cstdio>
 
@@ -19,6 +20,12 @@ std::string Format(const char* format, ...) {
   va_end(args);
   out.resize(static_cast<size_t>(std::max(n, 0)));
   return out;
+}
+
+std::string ShortestDecimal(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value + 0.0);
+  return std::string(buffer, result.ptr);
 }
 
 std::string ListText(const std::vector<std::string>& items) {

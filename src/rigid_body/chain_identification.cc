@@ -1,7 +1,6 @@
 #include "structgp/rigid_body/chain_identification.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -16,16 +15,13 @@
 #include "structgp/core/row_subset.h"
 #include "structgp/internal/workers.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
+#include "structgp/internal/text.h"
 
 namespace structgp {
 namespace {
 
-// The shortest decimal that reads back to the same double.
-std::string Num(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value + 0.0);
-  return std::string(buffer, result.ptr);
-}
+// Numbers that read back to the same double.
+std::string Num(double value) { return internal::ShortestDecimal(value); }
 
 // Modified DH of joint i (1-based) from the parameter vector: alpha, a, theta, d.
 struct Dh {

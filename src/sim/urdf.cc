@@ -1,21 +1,18 @@
 #include "structgp/sim/urdf.h"
 
-#include <charconv>
 #include <sstream>
 #include <stdexcept>
 
 #include <kdl/frames.hpp>
 
+#include "structgp/internal/text.h"
+
 namespace structgp {
 namespace sim {
 namespace {
 
-// The shortest decimal that reads back to the same double (std::to_chars), -0 as 0.
-std::string Num(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value + 0.0);
-  return std::string(buffer, result.ptr);
-}
+// Numbers that read back to the same double.
+std::string Num(double value) { return internal::ShortestDecimal(value); }
 
 // Pose of the URDF frame of link i in DH frame i, the rest of the DH link after the joint's turn.
 KDL::Frame AfterJoint(const LinkParameters& link) {

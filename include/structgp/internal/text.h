@@ -22,6 +22,10 @@ std::string JointList(const std::vector<int>& joints);
 /// "joint 1", "joints 1 and 3".
 std::string JointsText(const std::vector<int>& joints);
 
+/// The shortest decimal that reads back to the same double (std::to_chars), -0 as 0: numbers in
+/// written documents (URDF) that must round-trip.
+std::string ShortestDecimal(double value);
+
 /// A table with aligned columns; rows[0] is the header. Columns of numbers are right-aligned;
 /// the first column and columns of text left-aligned ("-" and "n/a" count as neither).
 std::string Table(const std::vector<std::vector<std::string>>& rows, int indent = 2);
