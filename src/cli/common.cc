@@ -72,7 +72,7 @@ RobotModel MakeModel(const ModelSpec& spec, int num_joints, const RobotModelOpti
 void AddRobotFlags(CLI::App* command, RobotFlags* flags) {
   command->add_option("--urdf", flags->urdf,
                       "The robot's URDF (model rbd: its kinematic chain and the prior on its "
-                      "inertial parameters)");
+                      "inertial parameters; 'structgp identify' finds one from a torque log)");
   command->add_option("--root", flags->root, "Base link of the chain (default: the URDF's root)");
   command->add_option("--tip", flags->tip,
                       "Last link of the chain (default: the single leaf below --root)");

@@ -91,7 +91,8 @@ const char* Describe(BaseModel base) {
     case BaseModel::kRbfs: return "squared-exponential kernel on (cos q, sin q, qd, qdd)";
     case BaseModel::kMotor: return "the linear motor model c1 qdd + c2 qd per joint";
     case BaseModel::kRbd:
-      return "the rigid-body regressor of a URDF chain, inertial parameters identified (--urdf)";
+      return "the rigid-body regressor of a URDF chain, inertial parameters identified (--urdf; "
+             "without one, structgp identify writes it from the torques)";
     case BaseModel::kLag:
       return "a Lagrangian regressor of a serial chain, kinematics unknown (up to 5 joints)";
     case BaseModel::kLagk:
