@@ -812,7 +812,13 @@ void BindDiagnosis(py::module_& m) {
         ChainIdentificationSummary s;
         {
           py::gil_scoped_release release;
-          s = IdentifyChain(states, torques, o);
+          try {
+            s = IdentifyChain(states, torques, o);
+          } catch (const std::invalid_argument&) {
+            throw;
+          } catch (const std::runtime_error& e) {
+            throw NumericalError(e.what());
+          }
         }
         py::dict kinematics;
         const std::vector<std::string> names = ChainKinematicNames(static_cast<int>(torques.cols()));
@@ -822,7 +828,10 @@ void BindDiagnosis(py::module_& m) {
         py::dict out;
         out["urdf"] = s.urdf;
         out["kinematics"] = kinematics;
+        out["starts"] = s.starts;
         out["start_costs"] = s.start_costs;
+        out["moved_cost"] = s.moved_cost;
+        out["moves_kept"] = s.moves_kept;
         out["best_start"] = s.best_start;
         out["starts_at_best"] = s.starts_at_best;
         out["refined_cost"] = s.refined_cost;
@@ -840,9 +849,10 @@ void BindDiagnosis(py::module_& m) {
       "The robot's kinematic chain found from its torques, as `structgp identify`: X (q, qd, qdd "
       "of N joints), Y (N torques). Returns a dict: 'urdf' (the chain as a URDF document, "
       "placeholder inertias: write it to a file and fit Model('rbd+fri', urdf=PATH)), "
-      "'kinematics' (name -> value, modified DH), 'start_costs', 'best_start', 'starts_at_best', "
+      "'kinematics' (name -> value, modified DH), 'starts' (the kept starts) with their "
+      "'start_costs', 'best_start', 'starts_at_best', 'moved_cost', 'moves_kept', "
       "'refined_cost', 'torque_rms' and 'residual_rms' per joint. Raises ValueError for bad "
-      "input.");
+      "input, structgp.Error when no start gives a chain.");
 
   m.def(
       "diagnose_loop",

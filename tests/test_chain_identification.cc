@@ -265,8 +265,8 @@ TEST(IdentifyChain, ExplainsALightWristToTheNoiseAtItsOwnKinematics) {
 }
 
 TEST(IdentifyChain, RefusesBadInputNamingIt) {
-  const Matrix X = RandomStates(2, 20, 1);
-  Matrix Y = Matrix::Ones(20, 2);
+  const Matrix X = RandomStates(2, 40, 1);
+  Matrix Y = Matrix::Ones(40, 2);
   auto message = [](const std::function<void()>& f) {
     try {
       f();
@@ -277,7 +277,7 @@ TEST(IdentifyChain, RefusesBadInputNamingIt) {
   };
   EXPECT_NE(message([&] { IdentifyChain(X.leftCols(5), Y); }).find("expected 3 N = 6"),
             std::string::npos);
-  EXPECT_NE(message([&] { IdentifyChain(X.topRows(10), Y); }).find("10 input rows and 20"),
+  EXPECT_NE(message([&] { IdentifyChain(X.topRows(10), Y); }).find("10 input rows and 40"),
             std::string::npos);
   Matrix bad = X;
   bad(3, 1) = std::nan("");
@@ -288,6 +288,13 @@ TEST(IdentifyChain, RefusesBadInputNamingIt) {
   ChainIdentificationOptions o;
   o.starts = 0;
   EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("starts >= 1"), std::string::npos);
+  // 20 rows of 2 joints: 40 torques for 26 linear parameters (with friction).
+  EXPECT_NE(message([&] { IdentifyChain(X.topRows(20), Y.topRows(20)); })
+                .find("40 torques for 26 linear parameters: at least 26 rows"),
+            std::string::npos);
+  o = ChainIdentificationOptions();
+  o.robot_name = "a\"b";
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("letters, digits"), std::string::npos);
 }
 
 }  // namespace

@@ -107,6 +107,8 @@ class IdentifyCommand : public Command {
     doc["start_costs"] = s.start_costs;
     doc["best_start"] = s.best_start + 1;
     doc["starts_at_best"] = s.starts_at_best;
+    if (std::isfinite(s.moved_cost)) doc["moved_cost"] = s.moved_cost;
+    doc["moves_kept"] = s.moves_kept;
     if (std::isfinite(s.refined_cost)) doc["refined_cost"] = s.refined_cost;
     doc["joints"] = nlohmann::json::array();
 
@@ -125,6 +127,10 @@ class IdentifyCommand : public Command {
     std::fprintf(text_out, "best cost %.4g (start %d), %d of %d reached it",
                  *std::min_element(s.start_costs.begin(), s.start_costs.end()), s.best_start + 1,
                  s.starts_at_best, kept);
+    if (s.moves_kept > 0) {
+      std::fprintf(text_out, "; %d length%s set to 0: %.4g", s.moves_kept,
+                   s.moves_kept > 1 ? "s" : "", s.moved_cost);
+    }
     if (std::isfinite(s.refined_cost)) {
       std::fprintf(text_out, "; refined on %d rows: %.4g",
                    std::min(data.size(), options_.refine_rows), s.refined_cost);

@@ -1,6 +1,7 @@
 #include "structgp/rigid_body/chain_identification.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -53,12 +54,15 @@ std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
 // over ten orders of magnitude (a light wrist link's inertias against a heavy link's mass on a
 // joint scaled by its small torque): a ridge relative to the mean column would bias the light
 // ones by far more than the noise.
-Vector Solve(const Matrix& A, const Vector& b) {
-  Matrix G = A.transpose() * A;
+Vector SolveNormal(Matrix G, const Vector& g) {
   const double floor =
       1e-12 * std::max(G.diagonal().mean(), std::numeric_limits<double>::min());
   G.diagonal().array() += 1e-9 * G.diagonal().array().max(floor);
-  return G.ldlt().solve(A.transpose() * b);
+  return G.ldlt().solve(g);
+}
+
+Vector Solve(const Matrix& A, const Vector& b) {
+  return SolveNormal(A.transpose() * A, A.transpose() * b);
 }
 
 // The design of X's rows for chain: row i * N + j is joint j's torque regressor at row i, then
@@ -102,7 +106,7 @@ bool Residual(const Search& s, const double* k, double* out) {
     const Eigen::Map<const Vector> kinematics(k, NumChainKinematicParameters(s.N));
     const RigidBodyChain chain = RigidBodyChain::FromUrdfString(ChainUrdf(s.N, kinematics));
     A = Design(chain, s.X, s.scale, *s.options);
-  } catch (const std::invalid_argument&) {
+  } catch (const std::logic_error&) {  // no chain of these numbers (a URDF or KDL check)
     return false;
   }
   Eigen::Map<Vector>(out, A.rows()) = s.y - A * Solve(A, s.y);
@@ -184,7 +188,7 @@ double Minimise(const Search& search, int max_iterations, Vector* k) {
   if (!result.IsSolutionUsable() || !std::isfinite(result.final_cost)) {
     return std::numeric_limits<double>::infinity();
   }
-  // The cost of the fit alone (without the pull), the angles in (-pi, pi].
+  // The cost of the fit alone (without the pull), the angles in [-pi, pi].
   for (Eigen::Index i = 0; i < k->size(); ++i) {
     if (!IsLength(static_cast<int>(i))) (*k)[i] = std::remainder((*k)[i], 2.0 * M_PI);
   }
@@ -307,6 +311,27 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
                                 " entries (finite), expected " +
                                 std::to_string(NumChainKinematicParameters(N)));
   }
+  for (char c : options.robot_name) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
+      throw std::invalid_argument("IdentifyChain: robot name '" + options.robot_name +
+                                  "': letters, digits, '_', '-' and '.' only (it is written "
+                                  "into the URDF)");
+    }
+  }
+  // Each row gives N torques; 11 N inertial parameters (and 2 N friction coefficients) are
+  // fitted on every set of rows: with fewer than twice as many torques any chain fits.
+  const Eigen::Index unknowns = 11 * N + (options.friction ? 2 * N : 0);
+  const Eigen::Index fewest =
+      std::min<Eigen::Index>({X.rows(), options.search_rows,
+                              options.kept_starts < options.starts ? options.screen_rows
+                                                                   : options.search_rows});
+  if (fewest * N < 2 * unknowns) {
+    throw std::invalid_argument(
+        "IdentifyChain: " + std::to_string(fewest) + " rows (of the data, search_rows or "
+        "screen_rows) give " + std::to_string(fewest * N) + " torques for " +
+        std::to_string(unknowns) + " linear parameters: at least " +
+        std::to_string((2 * unknowns + N - 1) / N) + " rows are needed");
+  }
   ChainIdentificationSummary summary;
   summary.torque_rms = (Y.colwise().squaredNorm() / static_cast<double>(Y.rows())).cwiseSqrt().transpose();
   for (int j = 0; j < N; ++j) {
@@ -367,7 +392,9 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   if (!std::isfinite(best)) {
     throw std::runtime_error("IdentifyChain: no start gave a chain whose torques could be fitted");
   }
-  for (double c : summary.start_costs) summary.starts_at_best += c <= 1.01 * best ? 1 : 0;
+  for (double c : summary.start_costs) {
+    summary.starts_at_best += c <= 1.01 * best + 1e-12 ? 1 : 0;  // noise-free logs: best ~ 0
+  }
   summary.kinematics = found[static_cast<size_t>(
       std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
       summary.start_costs.begin())];
@@ -398,19 +425,42 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   }
   summary.urdf = ChainUrdf(N, summary.kinematics, options.robot_name);
 
-  // The residual on every row with the identified kinematics.
+  // The residual on every row with the identified kinematics: the normal equations and then
+  // the residual block by block of rows (a long log's whole design would not fit in memory).
   const RigidBodyChain chain = RigidBodyChain::FromUrdfString(summary.urdf);
-  const Matrix A = Design(chain, X, search.scale, options);
-  Vector y(X.rows() * N);
-  for (Eigen::Index i = 0; i < X.rows(); ++i) {
-    for (int j = 0; j < N; ++j) y[i * N + j] = Y(i, j) / search.scale[j];
+  constexpr Eigen::Index kBlock = 1000;
+  auto block_rows = [&](Eigen::Index begin, Matrix* A, Vector* y) {
+    const Eigen::Index n = std::min(kBlock, X.rows() - begin);
+    *A = Design(chain, X.middleRows(begin, n), search.scale, options);
+    y->resize(n * N);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (int j = 0; j < N; ++j) (*y)[i * N + j] = Y(begin + i, j) / search.scale[j];
+    }
+  };
+  Matrix A;
+  Vector y;
+  Matrix G;
+  Vector g;
+  for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
+    block_rows(begin, &A, &y);
+    if (begin == 0) {
+      G = A.transpose() * A;
+      g = A.transpose() * y;
+    } else {
+      G.noalias() += A.transpose() * A;
+      g.noalias() += A.transpose() * y;
+    }
   }
-  const Vector residual = y - A * Solve(A, y);
+  const Vector theta = SolveNormal(G, g);
+  Vector sum = Vector::Zero(N);
+  for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
+    block_rows(begin, &A, &y);
+    const Vector r = y - A * theta;
+    for (Eigen::Index k = 0; k < r.size(); ++k) sum[k % N] += r[k] * r[k];
+  }
   summary.residual_rms.resize(N);
   for (int j = 0; j < N; ++j) {
-    double sum = 0.0;
-    for (Eigen::Index i = 0; i < X.rows(); ++i) sum += residual[i * N + j] * residual[i * N + j];
-    summary.residual_rms[j] = search.scale[j] * std::sqrt(sum / static_cast<double>(X.rows()));
+    summary.residual_rms[j] = search.scale[j] * std::sqrt(sum[j] / static_cast<double>(X.rows()));
   }
   return summary;
 }

@@ -112,8 +112,12 @@ std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
                       const std::string& robot_name = "identified_chain");
 
 /// Searches the kinematics of X's rows (q, qd, qdd of N joints: 3N columns) from the torques Y
-/// (N columns). Throws std::invalid_argument on mismatched sizes, fewer rows than 2, a
-/// non-finite entry, a joint whose torque is zero throughout, or an option out of range.
+/// (N columns). Throws std::invalid_argument on mismatched sizes, a non-finite entry, a joint
+/// whose torque is zero throughout, an option out of range, a robot name with other characters
+/// than letters, digits, '_', '-' and '.', or fewer rows (of the data, search_rows, or
+/// screen_rows when screening) than give twice as many torques as linear parameters (11 N,
+/// 13 N with friction: 26 rows). std::runtime_error when no start gives a chain that can be
+/// evaluated.
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                          const ChainIdentificationOptions& options = {});
 
