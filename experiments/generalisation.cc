@@ -465,6 +465,32 @@ std::vector<Prediction> PerJointKernels(const ModelSpec& spec, const std::string
   return predictions;
 }
 
+// The chain `structgp identify` finds from the case's training log (--chain-* flags), and the
+// search's outcome in words.
+std::shared_ptr<const RigidBodyChain> IdentifiedChain(const Case& c, bool friction,
+                                                      std::string* note) {
+  ChainIdentificationOptions o;
+  o.friction = friction;
+  o.num_threads = g_chain_threads;
+  o.starts = g_chain_starts;
+  o.search_rows = g_chain_rows;
+  if (!g_chain_initial.empty()) {
+    o.initial_kinematics = Eigen::Map<const Vector>(
+        g_chain_initial.data(), static_cast<Eigen::Index>(g_chain_initial.size()));
+  }
+  const ChainIdentificationSummary id = IdentifyChain(c.train.X, c.train.Y, o);
+  std::vector<double> sorted = id.start_costs;
+  std::sort(sorted.begin(), sorted.end());
+  *note = Format("; identify: best of %d starts (%d at it), costs %s; kinematics %s",
+                 static_cast<int>(sorted.size()), id.starts_at_best,
+                 Join(Eigen::Map<const Vector>(sorted.data(),
+                                               static_cast<Eigen::Index>(sorted.size())),
+                      "%.3g")
+                     .c_str(),
+                 Join(id.kinematics, "%.3f").c_str());
+  return std::make_shared<const RigidBodyChain>(RigidBodyChain::FromUrdfString(id.urdf));
+}
+
 Row RunModel(const std::string& robot_name, const std::string& case_name, const std::string& name,
              const sim::Robot& robot, const Case& c, int lagk_rows, int lagk_hyper_rows,
              const EulerLagrangeGPOptions& lagk_options, bool components,
@@ -530,47 +556,6 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
         return out;
       });
     }
-  } else if (name == "chain+fri" || name == "chain") {
-    // The product's path for a robot without a URDF: `structgp identify` (the chain's
-    // kinematics from the torques, rigid_body/chain_identification.h), then `structgp fit
-    // --model rbd[+fri] --urdf` on the URDF it wrote (FitModel with the CLI's defaults).
-    const bool friction = c.friction && name == "chain+fri";
-    row.model = friction ? "chain+fri" : "chain";
-    ChainIdentificationOptions o;
-    o.friction = friction;
-    o.num_threads = g_chain_threads;
-    o.starts = g_chain_starts;
-    o.search_rows = g_chain_rows;
-    if (!g_chain_initial.empty()) {
-      o.initial_kinematics = Eigen::Map<const Vector>(g_chain_initial.data(),
-                                                      static_cast<Eigen::Index>(g_chain_initial.size()));
-    }
-    const ChainIdentificationSummary id = IdentifyChain(c.train.X, c.train.Y, o);
-    const auto chain =
-        std::make_shared<const RigidBodyChain>(RigidBodyChain::FromUrdfString(id.urdf));
-    FitOptions fit_options;
-    fit_options.num_threads = g_chain_threads;
-    fit_options.model.batch.num_threads = g_chain_threads;
-    fit_options.model.rigid_body = chain;
-    const FittedModel fitted =
-        FitModel(ParseModelSpec(friction ? "rbd+fri" : "rbd"), c.train.X, c.train.Y, Vector(),
-                 fit_options);
-    if (!fitted.summary.IsUsable()) throw std::runtime_error("chain: " + fitted.summary.message);
-    const RobotModel& model = fitted.model;
-    row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::vector<double> sorted = id.start_costs;
-    std::sort(sorted.begin(), sorted.end());
-    row.note = Format("identify: best of %d starts (%d at it), costs %s; kinematics %s",
-                      static_cast<int>(sorted.size()), id.starts_at_best,
-                      Join(Eigen::Map<const Vector>(sorted.data(),
-                                                    static_cast<Eigen::Index>(sorted.size())),
-                           "%.3g")
-                          .c_str(),
-                      Join(id.kinematics, "%.3f").c_str());
-    for (const auto& t : c.tests) predictions.push_back(PredictModel(model, t.X));
-    if (components) {
-      row.component_ratio = ComponentRatios(c, [&](const Matrix& X) { return PredictModel(model, X).mean; });
-    }
   } else if (name == "reference") {
     Reference reference(*c.truth, c.friction, c.noise);
     reference.Fit(c.train.X, c.train.Y);
@@ -596,9 +581,14 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
       spec_text = name.substr(0, slash);
       off = variant == "off30";
     }
+    // "chain" and "chain+fri": the product's path for a robot without a URDF, `structgp
+    // identify` on the training log, then rbd on the URDF it wrote.
+    const bool identified = spec_text == "chain" || spec_text == "chain+fri";
+    if (identified) spec_text = spec_text == "chain+fri" ? "rbd+fri" : "rbd";
     ModelSpec spec = ParseModelSpec(spec_text);
     if (!c.friction) spec.friction = false;  // the models are told which effects there are
-    row.model = ToString(spec) + (variant.empty() ? "" : "/" + variant);
+    row.model = identified ? (spec.friction ? "chain+fri" : "chain")
+                           : ToString(spec) + (variant.empty() ? "" : "/" + variant);
     if (variant == "chain" || variant == "chain1") {
       if (spec.base != BaseModel::kPol) {
         throw std::invalid_argument("--models: /chain is a variant of pol");
@@ -615,7 +605,10 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
     options.evidence.prior.family = lagk_options.prior.family;  // --prior, for every search
     options.num_threads = lagk_options.num_threads;              // --threads
     options.model.batch.num_threads = lagk_options.num_threads;
-    if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
+    std::string identify_note;
+    if (identified) {
+      options.model.rigid_body = IdentifiedChain(c, spec.friction, &identify_note);
+    } else if (spec.base == BaseModel::kRbd || spec.rigid_body_features) {
       RigidBodyChain chain = ChainOf(robot, false);
       if (off) {
         std::mt19937_64 rng(5);
@@ -638,7 +631,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
       row.note = "fit failed: " + fitted.summary.message;
       return row;
     }
-    row.note = fitted.summary.method_description;
+    row.note = fitted.summary.method_description + identify_note;
     row.rows = fitted.summary.model_rows;
     for (const auto& t : c.tests) predictions.push_back(PredictModel(fitted.model, t.X));
     if (components) {
@@ -646,7 +639,7 @@ Row RunModel(const std::string& robot_name, const std::string& case_name, const 
           ComponentRatios(c, [&](const Matrix& X) { return PredictModel(fitted.model, X).mean; });
     }
     const RegressorGP* gp = fitted.model.gp().regressor();
-    if (gp != nullptr && spec.base == BaseModel::kRbd) {
+    if (gp != nullptr && spec.base == BaseModel::kRbd && !identified) {  // the truth's chain
       Identification(c, *options.model.rigid_body, gp->parameters().head(c.truth->num_parameters()),
                      &row);
       row.directions = gp->IdentifiedDirections();
