@@ -24,25 +24,38 @@ namespace {
 // Numbers that read back to the same double.
 std::string Num(double value) { return internal::ShortestDecimal(value); }
 
-// Modified DH of joint i (1-based) from the parameter vector: alpha, a, theta, d.
+// Modified DH of one joint: alpha, a, theta, d.
 struct Dh {
   double alpha = 0.0, a = 0.0, theta = 0.0, d = 0.0;
 };
 
+// Which joint's which DH number each kinematic parameter is (the header's layout): tilt is
+// joint 1's alpha, then theta_1, alpha_2, a_2, and theta_i, d_i, alpha_{i+1}, a_{i+1}.
+enum class Field { kAlpha, kA, kTheta, kD };
+struct Entry {
+  int joint;  // 0-based
+  Field field;
+};
+
+std::vector<Entry> Layout(int N) {
+  std::vector<Entry> layout = {{0, Field::kAlpha}};
+  if (N >= 2) layout.insert(layout.end(), {{0, Field::kTheta}, {1, Field::kAlpha}, {1, Field::kA}});
+  for (int i = 1; i < N - 1; ++i) {
+    layout.insert(layout.end(),
+                  {{i, Field::kTheta}, {i, Field::kD}, {i + 1, Field::kAlpha}, {i + 1, Field::kA}});
+  }
+  return layout;
+}
+
+bool IsLength(const Entry& e) { return e.field == Field::kA || e.field == Field::kD; }
+
 std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
   std::vector<Dh> dh(static_cast<size_t>(N));
-  dh[0].alpha = k[0];
-  if (N >= 2) {
-    dh[0].theta = k[1];
-    dh[1].alpha = k[2];
-    dh[1].a = k[3];
-    for (int i = 2; i <= N - 1; ++i) {
-      const int o = 4 + 4 * (i - 2);
-      dh[static_cast<size_t>(i - 1)].theta = k[o];
-      dh[static_cast<size_t>(i - 1)].d = k[o + 1];
-      dh[static_cast<size_t>(i)].alpha = k[o + 2];
-      dh[static_cast<size_t>(i)].a = k[o + 3];
-    }
+  const std::vector<Entry> layout = Layout(N);
+  for (size_t i = 0; i < layout.size(); ++i) {
+    Dh& j = dh[static_cast<size_t>(layout[i].joint)];
+    double* field[] = {&j.alpha, &j.a, &j.theta, &j.d};
+    *field[static_cast<int>(layout[i].field)] = k[static_cast<Eigen::Index>(i)];
   }
   return dh;
 }
@@ -120,14 +133,11 @@ struct ResidualFunctor {
   }
 };
 
-// Whether entry i of the kinematic parameters is a length (a or d) rather than an angle.
-bool IsLength(int i) { return i == 3 || (i >= 4 && ((i - 4) % 4 == 1 || (i - 4) % 4 == 3)); }
-
+// Lengths pulled towards 0 (weight at each length entry, 0 at the angles).
 struct LengthPull {
-  int size;
-  double weight;
+  Vector weights;
   bool operator()(double const* const* parameters, double* residuals) const {
-    for (int i = 0; i < size; ++i) residuals[i] = IsLength(i) ? weight * parameters[0][i] : 0.0;
+    for (Eigen::Index i = 0; i < weights.size(); ++i) residuals[i] = weights[i] * parameters[0][i];
     return true;
   }
 };
@@ -140,21 +150,17 @@ Vector RandomStart(int N, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::uniform_int_distribution<int> quarter(-1, 1), turn(-1, 2);
   std::bernoulli_distribution half(0.5), mostly(0.75);
-  const auto twist = [&] { return M_PI / 2 * quarter(*rng); };
-  const auto angle = [&] { return half(*rng) ? M_PI / 2 * turn(*rng) : M_PI * u(*rng); };
-  const auto length = [&] { return half(*rng) ? 0.0 : 0.5 * u(*rng); };
-  Vector k(NumChainKinematicParameters(N));
-  k[0] = mostly(*rng) ? 0.0 : M_PI / 2;
-  if (N >= 2) {
-    k[1] = angle();
-    k[2] = twist();
-    k[3] = length();
-    for (int i = 2; i <= N - 1; ++i) {
-      const int o = 4 + 4 * (i - 2);
-      k[o] = angle();
-      k[o + 1] = length();
-      k[o + 2] = twist();
-      k[o + 3] = length();
+  const std::vector<Entry> layout = Layout(N);
+  Vector k(static_cast<Eigen::Index>(layout.size()));
+  k[0] = mostly(*rng) ? 0.0 : M_PI / 2;  // the tilt
+  for (size_t i = 1; i < layout.size(); ++i) {
+    switch (layout[i].field) {
+      case Field::kAlpha: k[static_cast<Eigen::Index>(i)] = M_PI / 2 * quarter(*rng); break;
+      case Field::kTheta:
+        k[static_cast<Eigen::Index>(i)] = half(*rng) ? M_PI / 2 * turn(*rng) : M_PI * u(*rng);
+        break;
+      case Field::kA:
+      case Field::kD: k[static_cast<Eigen::Index>(i)] = half(*rng) ? 0.0 : 0.5 * u(*rng); break;
     }
   }
   return k;
@@ -172,9 +178,15 @@ double Minimise(const Search& search, int max_iterations, Vector* k) {
   // Lengths that no torque determines (the offsets along two parallel axes trade off, say)
   // stay small: a pull of 1e-6 per m^2 on the mean cost, a thousandth of a 1% residual's for
   // lengths of 0.3 m, the size of the minimum where they do show.
+  const std::vector<Entry> layout = Layout(search.N);
+  Vector weights(k->size());
+  for (Eigen::Index i = 0; i < k->size(); ++i) {
+    weights[i] = IsLength(layout[static_cast<size_t>(i)])
+                     ? std::sqrt(1e-6 * static_cast<double>(search.y.size()))
+                     : 0.0;
+  }
   auto* pull = new ceres::DynamicNumericDiffCostFunction<LengthPull, ceres::FORWARD>(
-      new LengthPull{static_cast<int>(k->size()),
-                     std::sqrt(1e-6 * static_cast<double>(search.y.size()))});
+      new LengthPull{weights});
   pull->AddParameterBlock(static_cast<int>(k->size()));
   pull->SetNumResiduals(static_cast<int>(k->size()));
   problem.AddResidualBlock(pull, nullptr, k->data());
@@ -190,7 +202,7 @@ double Minimise(const Search& search, int max_iterations, Vector* k) {
   }
   // The cost of the fit alone (without the pull), the angles in [-pi, pi].
   for (Eigen::Index i = 0; i < k->size(); ++i) {
-    if (!IsLength(static_cast<int>(i))) (*k)[i] = std::remainder((*k)[i], 2.0 * M_PI);
+    if (weights[i] == 0.0) (*k)[i] = std::remainder((*k)[i], 2.0 * M_PI);
   }
   std::vector<double> r(search.y.size());
   if (!Residual(search, k->data(), r.data())) return std::numeric_limits<double>::infinity();
@@ -199,16 +211,22 @@ double Minimise(const Search& search, int max_iterations, Vector* k) {
   return sum / static_cast<double>(r.size());
 }
 
+// Y's rows stacked (row i's joint j at i N + j), each joint divided by its scale: the right-hand
+// side of Design's rows.
+Vector StackScaled(const ConstMatrixRef& Y, const Vector& scale) {
+  const Eigen::Index N = Y.cols();
+  Vector y(Y.rows() * N);
+  for (Eigen::Index i = 0; i < Y.rows(); ++i) {
+    for (Eigen::Index j = 0; j < N; ++j) y[i * N + j] = Y(i, j) / scale[j];
+  }
+  return y;
+}
+
 // The rows of the search, their torques stacked and scaled.
 void SetRows(const ConstMatrixRef& X, const ConstMatrixRef& Y, Eigen::Index count, Search* s) {
   const std::vector<int> rows = EvenlySpacedRows(X.rows(), std::min<Eigen::Index>(X.rows(), count));
   s->X = SelectRows(X, rows);
-  s->y.resize(static_cast<Eigen::Index>(rows.size()) * s->N);
-  for (size_t i = 0; i < rows.size(); ++i) {
-    for (int j = 0; j < s->N; ++j) {
-      s->y[static_cast<Eigen::Index>(i) * s->N + j] = Y(rows[i], j) / s->scale[j];
-    }
-  }
+  s->y = StackScaled(SelectRows(Y, rows), s->scale);
 }
 
 }  // namespace
@@ -219,13 +237,12 @@ int NumChainKinematicParameters(int num_joints) {
 }
 
 std::vector<std::string> ChainKinematicNames(int num_joints) {
-  std::vector<std::string> names = {"tilt"};
-  if (num_joints >= 2) {
-    names.insert(names.end(), {"theta1", "alpha2", "a2"});
-    for (int i = 2; i <= num_joints - 1; ++i) {
-      const std::string n = std::to_string(i), next = std::to_string(i + 1);
-      names.insert(names.end(), {"theta" + n, "d" + n, "alpha" + next, "a" + next});
-    }
+  NumChainKinematicParameters(num_joints);  // checks num_joints
+  static const char* const kFields[] = {"alpha", "a", "theta", "d"};
+  std::vector<std::string> names;
+  for (const Entry& e : Layout(num_joints)) {
+    names.push_back(names.empty() ? std::string("tilt")
+                                  : kFields[static_cast<int>(e.field)] + std::to_string(e.joint + 1));
   }
   return names;
 }
@@ -381,30 +398,28 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     summary.starts.push_back(static_cast<int>(i));
     summary.start_costs.push_back(costs[i]);
   }
-  std::vector<Vector> kept_kinematics;
-  for (size_t i : kept) kept_kinematics.push_back(found[i]);
-  found = std::move(kept_kinematics);
-  summary.best_start = static_cast<int>(
+  const size_t winner = kept[static_cast<size_t>(
       std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
-      summary.start_costs.begin());
-  const double best = summary.start_costs[static_cast<size_t>(summary.best_start)];
-  summary.best_start = summary.starts[static_cast<size_t>(summary.best_start)];
+      summary.start_costs.begin())];
+  summary.best_start = static_cast<int>(winner);
+  const double best = costs[winner];
   if (!std::isfinite(best)) {
     throw std::runtime_error("IdentifyChain: no start gave a chain whose torques could be fitted");
   }
   for (double c : summary.start_costs) {
     summary.starts_at_best += c <= 1.01 * best + 1e-12 ? 1 : 0;  // noise-free logs: best ~ 0
   }
-  summary.kinematics = found[static_cast<size_t>(
-      std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
-      summary.start_costs.begin())];
+  summary.kinematics = found[winner];
   // Moves out of a local minimum: each length of the best chain set to 0 in turn (most arms
   // have intersecting or coplanar axes, which a search from a random start can miss) and the
   // search run again from there; a move that lowers the cost by 1% is kept.
   if (options.length_moves) {
     double cost = best;
+    const std::vector<Entry> layout = Layout(N);
     for (Eigen::Index i = 0; i < summary.kinematics.size(); ++i) {
-      if (!IsLength(static_cast<int>(i)) || std::abs(summary.kinematics[i]) < 0.02) continue;
+      if (!IsLength(layout[static_cast<size_t>(i)]) || std::abs(summary.kinematics[i]) < 0.02) {
+        continue;
+      }
       Vector moved = summary.kinematics;
       moved[i] = 0.0;
       const double c = Minimise(search, options.max_iterations, &moved);
@@ -432,10 +447,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   auto block_rows = [&](Eigen::Index begin, Matrix* A, Vector* y) {
     const Eigen::Index n = std::min(kBlock, X.rows() - begin);
     *A = Design(chain, X.middleRows(begin, n), search.scale, options);
-    y->resize(n * N);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      for (int j = 0; j < N; ++j) (*y)[i * N + j] = Y(begin + i, j) / search.scale[j];
-    }
+    *y = StackScaled(Y.middleRows(begin, n), search.scale);
   };
   Matrix A;
   Vector y;
