@@ -835,9 +835,8 @@ void BindDiagnosis(py::module_& m) {
         out["best_start"] = s.best_start;
         out["starts_at_best"] = s.starts_at_best;
         out["refined_cost"] = s.refined_cost;
-        out["torque_rms"] = std::vector<double>(s.torque_rms.data(), s.torque_rms.data() + s.torque_rms.size());
-        out["residual_rms"] =
-            std::vector<double>(s.residual_rms.data(), s.residual_rms.data() + s.residual_rms.size());
+        out["torque_rms"] = s.torque_rms;  // numpy arrays, as the module's other per-joint values
+        out["residual_rms"] = s.residual_rms;
         return out;
       },
       py::arg("X"), py::arg("Y"), py::kw_only(), py::arg("friction") = true,
@@ -851,7 +850,7 @@ void BindDiagnosis(py::module_& m) {
       "placeholder inertias: write it to a file and fit Model('rbd+fri', urdf=PATH)), "
       "'kinematics' (name -> value, modified DH), 'starts' (the kept starts) with their "
       "'start_costs', 'best_start', 'starts_at_best', 'moved_cost', 'moves_kept', "
-      "'refined_cost', 'torque_rms' and 'residual_rms' per joint. Raises ValueError for bad "
+      "'refined_cost', 'torque_rms' and 'residual_rms' per joint (numpy arrays). Raises ValueError for bad "
       "input, structgp.Error when no start gives a chain.");
 
   m.def(
