@@ -131,6 +131,7 @@ TEST(ChainUrdf, RefusesAWrongSizeOrANonFiniteParameter) {
   Vector k = Vector::Zero(8);
   k[5] = std::nan("");
   EXPECT_THROW(ChainUrdf(3, k), std::invalid_argument);
+  EXPECT_THROW(ChainUrdf(3, Vector::Zero(8), "a<b"), std::invalid_argument);
   EXPECT_EQ(NumChainKinematicParameters(1), 1);
   EXPECT_NO_THROW(RigidBodyChain::FromUrdfString(ChainUrdf(1, Vector::Constant(1, 0.4))));
 }

@@ -229,6 +229,17 @@ void SetRows(const ConstMatrixRef& X, const ConstMatrixRef& Y, Eigen::Index coun
   s->y = StackScaled(SelectRows(Y, rows), s->scale);
 }
 
+// A robot name the URDF's XML can hold as written.
+void CheckRobotName(const char* where, const std::string& name) {
+  for (char c : name) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
+      throw std::invalid_argument(std::string(where) + ": robot name '" + name +
+                                  "': letters, digits, '_', '-' and '.' only (it is written "
+                                  "into the URDF)");
+    }
+  }
+}
+
 }  // namespace
 
 int NumChainKinematicParameters(int num_joints) {
@@ -257,6 +268,7 @@ std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
                                 std::to_string(N) + " joints");
   }
   if (!kinematics.allFinite()) throw std::invalid_argument("ChainUrdf: a non-finite parameter");
+  CheckRobotName("ChainUrdf", robot_name);
   const std::vector<Dh> dh = DhOf(N, kinematics);
   std::ostringstream os;
   os << "<?xml version=\"1.0\"?>\n"
@@ -328,13 +340,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
                                 " entries (finite), expected " +
                                 std::to_string(NumChainKinematicParameters(N)));
   }
-  for (char c : options.robot_name) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
-      throw std::invalid_argument("IdentifyChain: robot name '" + options.robot_name +
-                                  "': letters, digits, '_', '-' and '.' only (it is written "
-                                  "into the URDF)");
-    }
-  }
+  CheckRobotName("IdentifyChain", options.robot_name);  // before the search, not after it
   // Each row gives N torques; 11 N inertial parameters (and 2 N friction coefficients) are
   // fitted on every set of rows: with fewer than twice as many torques any chain fits.
   const Eigen::Index unknowns = 11 * N + (options.friction ? 2 * N : 0);

@@ -107,7 +107,8 @@ std::vector<std::string> ChainKinematicNames(int num_joints);
 /// The URDF of the chain with these kinematic parameters: root link "base", moving joints
 /// "joint1".."jointN" (continuous, about z), links "link1".."linkN" each with the placeholder
 /// inertial 1 kg at the link origin, inertia 0.01 kg m^2 about each axis. Throws
-/// std::invalid_argument for a wrong size or a non-finite entry.
+/// std::invalid_argument for a wrong size, a non-finite entry, or a robot name with other
+/// characters than letters, digits, '_', '-' and '.'.
 std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
                       const std::string& robot_name = "identified_chain");
 
