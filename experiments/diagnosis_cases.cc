@@ -36,7 +36,9 @@
 // | drift    | 0.1 (t / t_end) tanh(qd_j / 0.01), t_end the end of the diagnosed log | drift@j:t0=0;span=t_end |
 // | combined | 0.05 each of Coulomb, viscous, Stribeck on every joint | coulomb,viscous,stribeck@k:velocity=v_k |
 //
-// Per case and model (--models: pol, rbd with the simulated chain as its URDF; rbd shares its
+// Per case and model (--models: pol, rbd with the simulated chain as its URDF, chain: rbd on
+// the chain identified from the training log, identified again with the effects of each refit
+// unless --no-reidentify; rbd shares its
 // inertial parameters across joints, so it is given the torques in N m, with the noise and
 // hidden torques scaled along, and its RMS is divided by the noise in N m): the model is
 // fitted on the training log with the CLI's defaults (FitModel, type-II maximum likelihood),
@@ -118,7 +120,7 @@
 #include "structgp/io/model_file.h"
 #include "structgp/io/robot_data.h"
 #include "structgp/model/model_spec.h"
-#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/fit/chain_identification.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/robot.h"
@@ -183,6 +185,8 @@ struct Flags {
   bool quick = false;
   bool check = false;
   bool with_training = true;
+  // chain: refits with effects on the chain identified again with them (else on the first).
+  bool reidentify = true;
 };
 
 // ---- reading a diagnosis --------------------------------------------------------------------
@@ -589,17 +593,30 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   row.kase = case_name;
   row.model = model_name;
   row.expected = ExpectedText(logs.expected);
-  std::shared_ptr<const RigidBodyChain> chain;
-  if (identified) {
+  // The chain identified from the training log with the effects of a model (the loop a user
+  // runs without a URDF: identify, fit rbd, diagnose, identify again with the suggestions).
+  auto identify = [&](const std::vector<EffectSpec>& effects) {
+    const auto begin = std::chrono::steady_clock::now();
     ChainIdentificationOptions o;
     o.num_threads = g_threads;
-    const ChainIdentificationSummary id = IdentifyChain(logs.train.X, logs.train.Y, o);
-    chain = std::make_shared<const RigidBodyChain>(
+    o.effects = effects;
+    Matrix X = logs.train.X;
+    X.conservativeResize(Eigen::NoChange, X.cols() + 1);
+    X.col(X.cols() - 1) = logs.train.t;
+    const ChainIdentificationSummary id = IdentifyChain(X, logs.train.Y, o);
+    std::fprintf(stderr,
+                 "%s %s chain%s%s: identified in %.0f s, %d round%s, %d of %d kept starts at the "
+                 "best cost %.3g\n",
+                 robot_name.c_str(), case_name.c_str(), effects.empty() ? "" : " with ",
+                 ToString(effects).c_str(), Seconds(begin), id.rounds, id.rounds > 1 ? "s" : "",
+                 id.starts_at_best, static_cast<int>(id.start_costs.size()),
+                 *std::min_element(id.start_costs.begin(), id.start_costs.end()));
+    return std::make_shared<const RigidBodyChain>(
         RigidBodyChain::FromUrdfString(id.urdf, {}, "identified.urdf"));
-    std::fprintf(stderr, "%s %s chain: identified in %.0f s, %d of %d starts at the best cost %.3g\n",
-                 robot_name.c_str(), case_name.c_str(), Seconds(start), id.starts_at_best,
-                 static_cast<int>(id.start_costs.size()),
-                 id.start_costs[static_cast<size_t>(id.best_start)]);
+  };
+  std::shared_ptr<const RigidBodyChain> chain;
+  if (identified) {
+    chain = identify({});
   } else if (rigid_body) {
     chain = logs.urdf;
   }
@@ -644,7 +661,10 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
     const std::string label = ModelLabel(s);
     auto it = fitted.find(label);
     if (it != fitted.end()) return it->second;
-    Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, chain, f.ml_max_rows, from);
+    // Without a URDF the chain is identified again with the effects (--reidentify).
+    const std::shared_ptr<const RigidBodyChain> refit_chain =
+        identified && f.reidentify && !s.effects.empty() ? identify(s.effects) : chain;
+    Fit fit = FitSpec(s, logs.train.X, logs.train.Y, logs.train.t, refit_chain, f.ml_max_rows, from);
     Refit result{Vector(), fit.error, std::move(fit.model)};
     if (result.model) {
       result.rms = ColumnRms(PredictOn(*result.model, logs.eval.X, logs.eval.t), logs.eval.Y)
@@ -1293,6 +1313,10 @@ int main(int argc, char** argv) {
           "(DiagnosisOptions::autocorrelation)")
       ->check(CLI::IsMember({"bartlett", "prewhitening", "none"}))
       ->capture_default_str();
+  app.add_flag("--reidentify,!--no-reidentify", f.reidentify,
+               "part A, model chain: refits with effects (the suggestions, the true ones) on a "
+               "chain identified again with those effects in its least squares, as a user "
+               "without a URDF would run the loop (or on the first chain)");
   app.add_flag("--with-training,!--log-only", f.with_training,
                "give the diagnosis the model's training data too (the default; --log-only: the "
                "diagnosed log alone)");

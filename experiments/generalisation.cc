@@ -72,7 +72,7 @@
 #include "structgp/kernel/pol_chain_kernel.h"
 #include "structgp/kernel/sum_kernel.h"
 #include "structgp/model/kernel_gp.h"
-#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/fit/chain_identification.h"
 #include "structgp/rigid_body/physical_consistency.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"

@@ -37,7 +37,7 @@
 #include "structgp/online/online_learner.h"
 #include "structgp/report/report.h"
 #include "structgp/report/report_data.h"
-#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/fit/chain_identification.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/hidden_effect.h"
 #include "structgp/sim/robot.h"
@@ -798,12 +798,36 @@ void BindDiagnosis(py::module_& m) {
 
   m.def(
       "identify_chain",
-      [](const py::object& X, const py::object& Y, bool friction, int starts, int rows,
-         int refine_rows, std::uint64_t seed, int threads, const std::string& name) {
-        const Matrix states = AsMatrix(X, "X"), torques = AsMatrix(Y, "Y");
+      [](const py::object& X, const py::object& Y, const py::object& t, bool friction,
+         const py::object& effects, int starts, int rounds, int rows, int refine_rows,
+         std::uint64_t seed, int threads, const std::string& name) {
+        Matrix states = AsMatrix(X, "X");
+        const Matrix torques = AsMatrix(Y, "Y");
+        const Vector times = AsVector(t, "t");
+        if (times.size() > 0) {  // the time as the last input, for effects that use it
+          if (times.size() != states.rows()) {
+            throw std::invalid_argument("t: " + std::to_string(times.size()) +
+                                        " entries, expected one per row of X (" +
+                                        std::to_string(states.rows()) + ")");
+          }
+          states.conservativeResize(Eigen::NoChange, states.cols() + 1);
+          states.col(states.cols() - 1) = times;
+        }
         ChainIdentificationOptions o;
         o.friction = friction;
+        if (!effects.is_none()) {
+          std::vector<std::string> items;
+          if (py::isinstance<py::str>(effects)) {
+            items.push_back(effects.cast<std::string>());
+          } else {
+            items = effects.cast<std::vector<std::string>>();
+          }
+          for (const std::string& item : items) {
+            for (EffectSpec& e : ParseEffectList(item)) o.effects.push_back(std::move(e));
+          }
+        }
         o.starts = starts;
+        o.max_rounds = rounds;
         o.search_rows = rows;
         o.refine_rows = refine_rows;
         o.seed = seed;
@@ -825,31 +849,44 @@ void BindDiagnosis(py::module_& m) {
         for (size_t k = 0; k < names.size(); ++k) {
           kinematics[py::str(names[k])] = s.kinematics[static_cast<Eigen::Index>(k)];
         }
+        py::list undetermined;
+        for (int k : s.undetermined) undetermined.append(names[static_cast<size_t>(k)]);
         py::dict out;
         out["urdf"] = s.urdf;
         out["kinematics"] = kinematics;
+        out["undetermined"] = undetermined;
+        out["cost_change"] = s.cost_change;
+        out["faster_change"] = s.faster_change;
         out["starts"] = s.starts;
         out["start_costs"] = s.start_costs;
         out["moved_cost"] = s.moved_cost;
         out["moves_kept"] = s.moves_kept;
         out["best_start"] = s.best_start;
         out["starts_at_best"] = s.starts_at_best;
+        out["rounds"] = s.rounds;
         out["refined_cost"] = s.refined_cost;
         out["torque_rms"] = s.torque_rms;  // numpy arrays, as the module's other per-joint values
         out["residual_rms"] = s.residual_rms;
         return out;
       },
-      py::arg("X"), py::arg("Y"), py::kw_only(), py::arg("friction") = true,
+      py::arg("X"), py::arg("Y"), py::arg("t") = py::none(), py::kw_only(),
+      py::arg("friction") = true, py::arg("effects") = py::none(),
       py::arg("starts") = ChainIdentificationOptions().starts,
+      py::arg("rounds") = ChainIdentificationOptions().max_rounds,
       py::arg("rows") = ChainIdentificationOptions().search_rows,
       py::arg("refine_rows") = ChainIdentificationOptions().refine_rows,
       py::arg("seed") = ChainIdentificationOptions().seed, py::arg("threads") = 1,
       py::arg("name") = ChainIdentificationOptions().robot_name,
       "The robot's kinematic chain found from its torques, as `structgp identify`: X (q, qd, qdd "
-      "of N joints), Y (N torques). Returns a dict: 'urdf' (the chain as a URDF document, "
+      "of N joints), Y (N torques), t (times, for effects that use them). effects: as Model's "
+      "(e.g. 'cogging@1:period=0.3'), fitted beside the chain. rounds: rounds of `starts` "
+      "starts at most, another while fewer than two reach the least cost. Returns a dict: "
+      "'urdf' (the chain as a URDF document, "
       "placeholder inertias: write it to a file and fit Model('rbd+fri', urdf=PATH)), "
       "'kinematics' (name -> value, modified DH), 'starts' (the kept starts) with their "
-      "'start_costs', 'best_start', 'starts_at_best', 'moved_cost', 'moves_kept', "
+      "'start_costs', 'best_start', 'starts_at_best', 'rounds', 'moved_cost', 'moves_kept', "
+      "'undetermined' (names of the kinematic parameters the log does not determine although "
+      "faster motion would show them), 'cost_change' and 'faster_change' per parameter, "
       "'refined_cost', 'torque_rms' and 'residual_rms' per joint (numpy arrays). Raises ValueError for bad "
       "input, structgp.Error when no start gives a chain.");
 

@@ -1,9 +1,11 @@
-// A chain's kinematics identified from its torques (rigid_body/chain_identification.h), against
-// KDL: the URDF written for given kinematics spans the torques of the simulator's chain built
+// A chain's kinematics identified from its torques (fit/chain_identification.h; the chain of
+// given kinematics: rigid_body/dh_chain.h), against KDL: the URDF written for given kinematics spans the torques of the simulator's chain built
 // from the same Denavit-Hartenberg parameters (and of chains that differ only where no torque
 // shows it), and not of other kinematics; the search finds, from a slow noisy log of an arm
 // in the other DH convention, a chain whose rbd+fri model predicts a fast log of another path
-// as well as least squares on the true chain's regressor.
+// as well as least squares on the true chain's regressor; an effect no chain makes (a cogging
+// ripple) bends the chain unless it is given, and given it the log is explained to the noise;
+// rounds of starts are drawn until two kept starts reach the best cost.
 
 #include <algorithm>
 #include <cmath>
@@ -17,8 +19,9 @@
 #include <gtest/gtest.h>
 
 #include "structgp/core/row_subset.h"
+#include "structgp/fit/chain_identification.h"
 #include "structgp/fit/fit_model.h"
-#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/model/model_spec.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/sim/dataset.h"
 #include "structgp/sim/friction.h"
@@ -265,6 +268,96 @@ TEST(IdentifyChain, ExplainsALightWristToTheNoiseAtItsOwnKinematics) {
   for (int j = 0; j < 6; ++j) EXPECT_LT(id.residual_rms[j], 1.1 * noise[j]) << "joint " << j + 1;
 }
 
+// The two-link arm (planar, vertical) with a cogging ripple on joint 2 of a tenth of its RMS
+// torque, viscous and Coulomb friction on both joints and 1% noise; t in the last column of X.
+struct RippleLog {
+  Matrix X, Y;
+  Vector noise;
+};
+RippleLog TwoLinkRippleLog(std::uint64_t seed) {
+  std::vector<sim::JointFriction> joints(2);
+  for (auto& j : joints) {
+    j.coulomb = 0.2;
+    j.viscous = 0.1;
+    j.smoothing_velocity = 0.01;
+  }
+  sim::SimulationOptions options;
+  options.friction = sim::FrictionModel(joints);
+  const sim::Dataset d =
+      sim::Simulate(sim::TwoLinkArm(), sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, seed), options);
+  RippleLog log;
+  log.Y = d.Y;
+  const Vector rms = (d.Y.colwise().squaredNorm() / d.Y.rows()).cwiseSqrt().transpose();
+  log.noise = 0.01 * rms;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  for (Eigen::Index i = 0; i < log.Y.rows(); ++i) {
+    log.Y(i, 1) += 0.1 * rms[1] * std::sin(2.0 * M_PI * d.X(i, 1) / 0.3 + 0.4);
+    for (int j = 0; j < 2; ++j) log.Y(i, j) += log.noise[j] * normal(rng);
+  }
+  log.X.resize(d.X.rows(), d.X.cols() + 1);
+  log.X << d.X, d.t;
+  return log;
+}
+
+TEST(IdentifyChain, AnEffectNoChainMakesIsExplainedWhenGivenAndNotOtherwise) {
+  const RippleLog log = TwoLinkRippleLog(3);
+  ChainIdentificationOptions options;
+  options.starts = 8;
+  options.kept_starts = 3;
+  options.max_rounds = 1;
+  const ChainIdentificationSummary without = IdentifyChain(log.X, log.Y, options);
+  EXPECT_GT(without.residual_rms[1], 3.0 * log.noise[1]);  // the ripple is left over
+  options.effects = ParseEffectList("cogging@2:period=0.3");
+  const ChainIdentificationSummary with = IdentifyChain(log.X, log.Y, options);
+  for (int j = 0; j < 2; ++j) {
+    EXPECT_LT(with.residual_rms[j], 1.1 * log.noise[j]) << "joint " << j + 1;
+  }
+  // The ripple's period wrong by a third: the effect does not fit, and the residual stays.
+  options.effects = ParseEffectList("cogging@2:period=0.4");
+  EXPECT_GT(IdentifyChain(log.X, log.Y, options).residual_rms[1], 3.0 * log.noise[1]);
+  // The time column is read only by effects that use it: the same chain without it.
+  options.effects = ParseEffectList("cogging@2:period=0.3");
+  const ChainIdentificationSummary no_time =
+      IdentifyChain(log.X.leftCols(6), log.Y, options);
+  EXPECT_EQ(no_time.urdf, with.urdf);
+  // An effect that reads the time (a drift of the Coulomb level on joint 1) is accepted with it.
+  options.effects = ParseEffectList("cogging@2:period=0.3,drift@1");
+  const ChainIdentificationSummary drift = IdentifyChain(log.X, log.Y, options);
+  EXPECT_LT(drift.residual_rms[1], 1.1 * log.noise[1]);
+}
+
+// Rounds: one start a round, so that a second round is drawn whenever the first start alone is
+// at its own best; the rounds stop as soon as two kept starts reach the best cost.
+TEST(IdentifyChain, DrawsRoundsOfStartsUntilTwoReachTheBestCost) {
+  const RippleLog log = TwoLinkRippleLog(4);
+  ChainIdentificationOptions options;
+  options.starts = 1;
+  options.kept_starts = 1;
+  options.max_rounds = 4;
+  options.effects = ParseEffectList("cogging@2:period=0.3");
+  options.length_moves = false;
+  options.refine_rows = 0;
+  const ChainIdentificationSummary id = IdentifyChain(log.X, log.Y, options);
+  ASSERT_GE(id.rounds, 2);
+  ASSERT_EQ(static_cast<int>(id.starts.size()), id.rounds);
+  for (int r = 0; r < id.rounds; ++r) EXPECT_EQ(id.starts[static_cast<size_t>(r)], r);
+  const double best = *std::min_element(id.start_costs.begin(), id.start_costs.end());
+  int at_best = 0;
+  for (double c : id.start_costs) at_best += c <= 1.01 * best ? 1 : 0;
+  EXPECT_EQ(at_best, id.starts_at_best);
+  // Stopped at the first round with two at the best, or at the last round.
+  EXPECT_TRUE(id.starts_at_best >= 2 || id.rounds == options.max_rounds);
+  if (id.rounds < options.max_rounds) {
+    EXPECT_LE(id.start_costs.back(), 1.01 * best);  // the last round's start made the pair
+  }
+  // The same first round as a run of one round: rounds only add starts.
+  options.max_rounds = 1;
+  const ChainIdentificationSummary one = IdentifyChain(log.X, log.Y, options);
+  EXPECT_EQ(one.rounds, 1);
+  EXPECT_EQ(one.start_costs.front(), id.start_costs.front());
+}
+
 TEST(IdentifyChain, RefusesBadInputNamingIt) {
   const Matrix X = RandomStates(2, 40, 1);
   Matrix Y = Matrix::Ones(40, 2);
@@ -289,9 +382,26 @@ TEST(IdentifyChain, RefusesBadInputNamingIt) {
   ChainIdentificationOptions o;
   o.starts = 0;
   EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("starts >= 1"), std::string::npos);
-  // 20 rows of 2 joints: 40 torques for 26 linear parameters (with friction).
+  // 20 rows of 2 joints: 40 torques for 28 linear parameters (with friction).
   EXPECT_NE(message([&] { IdentifyChain(X.topRows(20), Y.topRows(20)); })
-                .find("40 torques for 26 linear parameters: at least 26 rows"),
+                .find("40 torques for 28 linear parameters: at least 28 rows"),
+            std::string::npos);
+  o = ChainIdentificationOptions();
+  o.max_rounds = 0;
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("max_rounds >= 1"), std::string::npos);
+  // Effects: a joint the robot lacks, the time an effect needs, the bases counted as unknowns.
+  o = ChainIdentificationOptions();
+  o.effects = ParseEffectList("cogging@3:period=0.3");
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("names joint 3, but the robot has 2"),
+            std::string::npos);
+  o.effects = ParseEffectList("drift@1");
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("uses the time: X needs the time t"),
+            std::string::npos);
+  o.effects = ParseEffectList("cogging:period=0.3");  // 2 bases on each joint: 32 unknowns
+  EXPECT_NE(message([&] { IdentifyChain(X.topRows(30), Y.topRows(30), o); })
+                .find("60 torques for 32 linear parameters"),
+            std::string::npos);
+  EXPECT_NE(message([&] { IdentifyChain(Matrix::Zero(40, 8), Y); }).find("or 3 N + 1 with the time"),
             std::string::npos);
   o = ChainIdentificationOptions();
   o.robot_name = "a\"b";

@@ -23,6 +23,9 @@ def test_identify_chain_agrees_with_the_program_and_its_urdf_fits(cli, demo, tmp
     assert found["urdf"] == (tmp_path / "cli.urdf").read_text()
     assert found["best_start"] + 1 == summary["best_start"]
     assert len(found["start_costs"]) == 3
+    assert found["rounds"] == summary["rounds"] >= 1
+    assert found["undetermined"] == summary["undetermined"]
+    assert found["cost_change"].shape == (4,) and found["faster_change"].shape == (4,)
 
     path = tmp_path / "robot.urdf"
     path.write_text(found["urdf"])
@@ -38,3 +41,19 @@ def test_identify_chain_refuses_bad_input():
         structgp.identify_chain(X[:, :5], np.ones((10, 2)))
     with pytest.raises(ValueError, match="threads"):
         structgp.identify_chain(X, np.ones((10, 2)), threads=0)
+
+
+def test_identify_chain_takes_effects_and_their_time(demo):
+    train = structgp.read_robot_csv(str(demo / "train.csv"))
+    # The demo's hidden friction is a Coulomb step on joint 2, which +fri already holds: an
+    # effect that reads the time is fitted beside it when t is given, refused without it.
+    found = structgp.identify_chain(train.X, train.Y, train.t, effects="drift@2", starts=2,
+                                    rounds=1, threads=2)
+    assert found["rounds"] == 1
+    assert np.all(found["residual_rms"] < 0.02 * found["torque_rms"])
+    with pytest.raises(ValueError, match="uses the time"):
+        structgp.identify_chain(train.X, train.Y, effects="drift@2", starts=2)
+    with pytest.raises(ValueError, match="entries, expected one per row"):
+        structgp.identify_chain(train.X, train.Y, train.t[:10], starts=2)
+    with pytest.raises(ValueError, match="names joint 3"):
+        structgp.identify_chain(train.X, train.Y, effects="offset@3", starts=2)

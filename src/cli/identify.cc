@@ -1,5 +1,5 @@
 // structgp identify: a robot's kinematic chain found from a torque log, written as a URDF for
-// the rbd models (rigid_body/chain_identification.h).
+// the rbd models (fit/chain_identification.h).
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +10,7 @@
 
 #include "commands.h"
 #include "common.h"
-#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/fit/chain_identification.h"
 
 namespace structgp {
 namespace cli {
@@ -32,8 +32,13 @@ class IdentifyCommand : public Command {
                     "Also write the summary as JSON: the kinematic parameters, each start's "
                     "cost and the residual per joint (- for stdout)");
     cmd->add_flag("--no-friction", no_friction_,
-                  "Fit the rigid body alone (by default viscous and Coulomb friction per joint "
-                  "are fitted beside it, so that friction does not bend the kinematics)");
+                  "Fit the rigid body alone (by default the friction of +fri, viscous, Coulomb "
+                  "and an offset per joint, is fitted beside it, so that friction does not bend "
+                  "the kinematics)");
+    cmd->add_option("--effects", effects_,
+                    "Effects fitted beside the chain, as fit's --effects takes them (e.g. "
+                    "'cogging@1:period=0.3' from a diagnosis): a torque no chain makes then "
+                    "does not bend the kinematics");
     cmd->add_option("--starts", options_.starts,
                     "Random starts of the search, each screened by a few iterations on few rows")
         ->check(CLI::Range(1, 100000))
@@ -51,6 +56,11 @@ class IdentifyCommand : public Command {
                     "Evenly spaced rows on which the best start is searched again")
         ->check(CLI::Range(0, 1000000))
         ->capture_default_str();
+    cmd->add_option("--rounds", options_.max_rounds,
+                    "Rounds of --starts starts at most: another round is drawn while fewer than "
+                    "two kept starts have reached the least cost")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
     cmd->add_option("--seed", options_.seed, "Seed of the random starts")->capture_default_str();
     cmd->add_option("--name", options_.robot_name, "Robot name in the URDF")
         ->capture_default_str();
@@ -65,7 +75,9 @@ class IdentifyCommand : public Command {
         "inertial parameters and friction by least squares at each step; several random starts.\n"
         "The URDF's inertial values are placeholders: fit them with rbd. Example:\n"
         "  structgp identify --data train.csv --out robot.urdf\n"
-        "  structgp fit --data train.csv --model rbd+fri --urdf robot.urdf --out model.json");
+        "  structgp fit --data train.csv --model rbd+fri --urdf robot.urdf --out model.json\n"
+        "When a diagnosis of that model names an effect, identify again with it:\n"
+        "  structgp identify --data train.csv --effects cogging@1:period=0.3 --out robot.urdf");
     return cmd;
   }
 
@@ -74,6 +86,7 @@ class IdentifyCommand : public Command {
     if (!json_.empty()) CheckOutputPath("--json", json_);
     std::FILE* const text_out = TextStream({{"--out", out_}, {"--json", json_}});
     options_.friction = !no_friction_;
+    if (!effects_.empty()) options_.effects = ParseSpecFlags("rbd", effects_).effects;
     if (options_.num_threads < 1) options_.num_threads = MachineThreads();
     const Progress progress("identify", quiet_);
     progress.Line("reading " + data_);
@@ -89,7 +102,13 @@ class IdentifyCommand : public Command {
     progress.Line("searching the kinematics of " + std::to_string(N) + " joints from " +
                   std::to_string(options_.starts) + " starts (" +
                   std::to_string(options_.num_threads) + " at once)");
-    const ChainIdentificationSummary s = IdentifyChain(data.X, data.Y, options_);
+    // With the time as the last input when the log has one (effects that use it read it).
+    Matrix X = data.X;
+    if (data.has_time()) {
+      X.conservativeResize(Eigen::NoChange, X.cols() + 1);
+      X.col(X.cols() - 1) = data.t;
+    }
+    const ChainIdentificationSummary s = IdentifyChain(X, data.Y, options_);
     progress.Line("done");
 
     const std::vector<std::string> names = ChainKinematicNames(N);
@@ -97,11 +116,14 @@ class IdentifyCommand : public Command {
     doc["data"] = data_;
     doc["num_samples"] = data.size();
     doc["friction"] = options_.friction;
+    doc["effects"] = ToString(options_.effects);
     doc["kinematics"] = nlohmann::json::object();
     for (size_t k = 0; k < names.size(); ++k) {
       doc["kinematics"][names[k]] = s.kinematics[static_cast<Eigen::Index>(k)];
     }
     doc["starts"] = options_.starts;
+    doc["rounds"] = s.rounds;
+    // Starts numbered from 1, round after round.
     doc["kept_starts"] = nlohmann::json::array();
     for (int k : s.starts) doc["kept_starts"].push_back(k + 1);
     doc["start_costs"] = s.start_costs;
@@ -110,16 +132,28 @@ class IdentifyCommand : public Command {
     if (std::isfinite(s.moved_cost)) doc["moved_cost"] = s.moved_cost;
     doc["moves_kept"] = s.moves_kept;
     if (std::isfinite(s.refined_cost)) doc["refined_cost"] = s.refined_cost;
+    doc["undetermined"] = nlohmann::json::array();
+    for (int k : s.undetermined) doc["undetermined"].push_back(names[static_cast<size_t>(k)]);
+    doc["cost_change"] = nlohmann::json::object();
+    doc["faster_change"] = nlohmann::json::object();
+    for (size_t k = 0; k < names.size(); ++k) {
+      const double cost = s.cost_change[static_cast<Eigen::Index>(k)];
+      const double faster = s.faster_change[static_cast<Eigen::Index>(k)];
+      if (std::isfinite(cost)) doc["cost_change"][names[k]] = cost;
+      if (std::isfinite(faster)) doc["faster_change"][names[k]] = faster;
+    }
     doc["joints"] = nlohmann::json::array();
 
     std::fprintf(text_out, "data   %s: %d samples, %d joints\n", data_.c_str(), data.size(), N);
     const int kept = static_cast<int>(s.starts.size());
-    if (kept < options_.starts) {
+    if (kept < options_.starts * s.rounds) {
       std::fprintf(text_out, "search %d starts screened (%d iterations on %d rows), the %d best "
-                             "searched on %d rows: ",
-                   options_.starts, options_.screen_iterations,
+                             "searched on %d rows",
+                   options_.starts * s.rounds, options_.screen_iterations,
                    std::min(data.size(), options_.screen_rows), kept,
                    std::min(data.size(), options_.search_rows));
+      if (s.rounds > 1) std::fprintf(text_out, " (%d rounds)", s.rounds);
+      std::fputs(": ", text_out);
     } else {
       std::fprintf(text_out, "search %d starts on %d rows: ", kept,
                    std::min(data.size(), options_.search_rows));
@@ -154,11 +188,28 @@ class IdentifyCommand : public Command {
                     Format("%.4g", s.kinematics[static_cast<Eigen::Index>(k)]);
     }
     std::fprintf(text_out, "kinematics (rad, m): %s\n", kinematics.c_str());
+    if (!s.undetermined.empty()) {
+      std::string list;
+      for (int k : s.undetermined) {
+        const Eigen::Index i = k;
+        list += Format("\n  %-8s moved by 0.1 changes the cost by %.2g%%, the torques at twice "
+                       "the speed by %.3g times the residual",
+                       names[static_cast<size_t>(k)].c_str(), 100.0 * s.cost_change[i],
+                       s.faster_change[i]);
+      }
+      std::fprintf(text_out,
+                   "warning: this log does not determine %zu kinematic parameter%s that faster "
+                   "motion would show:%s\n  their values are a guess; a model on this URDF may "
+                   "predict other motion badly: identify on a log with faster and wider motion\n",
+                   s.undetermined.size(), s.undetermined.size() > 1 ? "s" : "", list.c_str());
+    }
     if (s.starts_at_best < 2 && kept > 1) {
       std::fprintf(text_out,
-                   "warning: only one start reached the least cost; the search may not have "
-                   "found the best chain (try --starts %d)\n",
-                   2 * options_.starts);
+                   "warning: only one start reached the least cost in %d round%s; the search may "
+                   "not have found the best chain (try --rounds %d), or no chain explains the "
+                   "torques (see the residuals above; diagnose rbd on this URDF and identify "
+                   "again with the --effects it names)\n",
+                   s.rounds, s.rounds > 1 ? "s" : "", 2 * options_.max_rounds);
     }
     const std::vector<OutputFile> outputs = [&] {
       std::vector<OutputFile> o = {{"--out", out_, s.urdf}};
@@ -168,14 +219,17 @@ class IdentifyCommand : public Command {
     WriteOutputs(outputs);
     PrintWritten(text_out, outputs);
     if (!IsStdout(out_)) {
-      std::fprintf(text_out, "next: structgp fit --data %s --model rbd%s --urdf %s --out model.json\n",
-                   data_.c_str(), options_.friction ? "+fri" : "", out_.c_str());
+      const std::string effects =
+          options_.effects.empty() ? "" : " --effects '" + ToString(options_.effects) + "'";
+      std::fprintf(text_out,
+                   "next: structgp fit --data %s --model rbd%s --urdf %s%s --out model.json\n",
+                   data_.c_str(), options_.friction ? "+fri" : "", out_.c_str(), effects.c_str());
     }
     return kExitOk;
   }
 
  private:
-  std::string data_, out_, json_;
+  std::string data_, out_, json_, effects_;
   bool no_friction_ = false;
   bool quiet_ = false;
   ChainIdentificationOptions options_ = [] {

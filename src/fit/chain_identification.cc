@@ -1,64 +1,27 @@
-#include "structgp/rigid_body/chain_identification.h"
+#include "structgp/fit/chain_identification.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 
 #include <Eigen/Cholesky>
 #include <ceres/ceres.h>
-#include <kdl/frames.hpp>
 
 #include "structgp/core/row_subset.h"
+#include "structgp/feature/effects.h"
+#include "structgp/feature/rigid_body_regressor_map.h"
+#include "structgp/feature/semi_parametric_regressor_map.h"
 #include "structgp/internal/workers.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
-#include "structgp/internal/text.h"
 
 namespace structgp {
 namespace {
 
-// Numbers that read back to the same double.
-std::string Num(double value) { return internal::ShortestDecimal(value); }
-
-// Modified DH of one joint: alpha, a, theta, d.
-struct Dh {
-  double alpha = 0.0, a = 0.0, theta = 0.0, d = 0.0;
-};
-
-// Which joint's which DH number each kinematic parameter is (the header's layout): tilt is
-// joint 1's alpha, then theta_1, alpha_2, a_2, and theta_i, d_i, alpha_{i+1}, a_{i+1}.
-enum class Field { kAlpha, kA, kTheta, kD };
-struct Entry {
-  int joint;  // 0-based
-  Field field;
-};
-
-std::vector<Entry> Layout(int N) {
-  std::vector<Entry> layout = {{0, Field::kAlpha}};
-  if (N >= 2) layout.insert(layout.end(), {{0, Field::kTheta}, {1, Field::kAlpha}, {1, Field::kA}});
-  for (int i = 1; i < N - 1; ++i) {
-    layout.insert(layout.end(),
-                  {{i, Field::kTheta}, {i, Field::kD}, {i + 1, Field::kAlpha}, {i + 1, Field::kA}});
-  }
-  return layout;
-}
-
-bool IsLength(const Entry& e) { return e.field == Field::kA || e.field == Field::kD; }
-
-std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
-  std::vector<Dh> dh(static_cast<size_t>(N));
-  const std::vector<Entry> layout = Layout(N);
-  for (size_t i = 0; i < layout.size(); ++i) {
-    Dh& j = dh[static_cast<size_t>(layout[i].joint)];
-    double* field[] = {&j.alpha, &j.a, &j.theta, &j.d};
-    *field[static_cast<int>(layout[i].field)] = k[static_cast<Eigen::Index>(i)];
-  }
-  return dh;
-}
+using Field = ChainKinematicParameter::Field;
 
 // Least squares of the inertial parameters (and friction) on the design A (rows scaled), with a
 // ridge of 1e-9 of each column's own squared norm (at least 1e-12 of the mean one): the
@@ -78,27 +41,27 @@ Vector Solve(const Matrix& A, const Vector& b) {
   return SolveNormal(A.transpose() * A, A.transpose() * b);
 }
 
-// The design of X's rows for chain: row i * N + j is joint j's torque regressor at row i, then
-// viscous and Coulomb columns per joint when asked; each row divided by its joint's scale.
+// The regressor of the chain with the friction and effects of the options: the columns of the
+// rbd model (RobotModel's, with "+fri" and the effects) that will use the identified URDF.
+struct Columns {
+  SemiParametricOptions options;  // friction, effects, with_time
+};
+
+// The design of X's rows for chain: row i * N + j is joint j's torque regressor at row i (the
+// chain's inertial parameters, then friction and effects), each row divided by its joint's
+// scale.
 Matrix Design(const RigidBodyChain& chain, const ConstMatrixRef& X, const Vector& scale,
-              const ChainIdentificationOptions& options) {
+              const Columns& columns) {
   const int N = chain.num_joints();
-  const int P = chain.num_parameters();
-  Matrix A = Matrix::Zero(X.rows() * N, P + (options.friction ? 2 * N : 0));
-  RigidBodyChain::Workspace ws = chain.MakeWorkspace();
-  Matrix regressor(N, P);
+  const SemiParametricRegressorMap map(std::make_shared<RigidBodyRegressorMap>(chain),
+                                       columns.options);
+  Matrix A(X.rows() * N, map.dim());
+  const std::unique_ptr<RegressorMap::Scratch> scratch = map.MakeScratch();
+  Matrix psi(N, map.dim());
+  const Eigen::Index inputs = map.input_dim();
   for (Eigen::Index i = 0; i < X.rows(); ++i) {
-    chain.Regressor(X.row(i).segment(0, N).transpose(), X.row(i).segment(N, N).transpose(),
-                    X.row(i).segment(2 * N, N).transpose(), RigidBodyChain::Terms::kAll,
-                    regressor, ws);
-    A.block(i * N, 0, N, P) = regressor;
-    if (options.friction) {
-      for (int j = 0; j < N; ++j) {
-        const double qd = X(i, N + j);
-        A(i * N + j, P + 2 * j) = qd;
-        A(i * N + j, P + 2 * j + 1) = std::tanh(qd / options.friction_width);
-      }
-    }
+    map.Evaluate(X.row(i).head(inputs).transpose(), psi, scratch.get());
+    A.middleRows(i * N, N) = psi;
   }
   for (Eigen::Index r = 0; r < A.rows(); ++r) A.row(r) /= scale[r % N];
   return A;
@@ -109,7 +72,7 @@ struct Search {
   Matrix X;   // the search rows
   Vector y;   // their torques stacked row by row, each divided by its joint's scale
   Vector scale;
-  const ChainIdentificationOptions* options;
+  const Columns* columns;
 };
 
 // The scaled least-squares residual for the kinematics k; false where no chain is made of them.
@@ -118,7 +81,7 @@ bool Residual(const Search& s, const double* k, double* out) {
   try {
     const Eigen::Map<const Vector> kinematics(k, NumChainKinematicParameters(s.N));
     const RigidBodyChain chain = RigidBodyChain::FromUrdfString(ChainUrdf(s.N, kinematics));
-    A = Design(chain, s.X, s.scale, *s.options);
+    A = Design(chain, s.X, s.scale, *s.columns);
   } catch (const std::logic_error&) {  // no chain of these numbers (a URDF or KDL check)
     return false;
   }
@@ -126,18 +89,31 @@ bool Residual(const Search& s, const double* k, double* out) {
   return true;
 }
 
+// Ceres's forward differences step by 1e-6 of each parameter's magnitude, which near 0 (a
+// length pulled there, a tilt just off vertical) is too small a step to see the cost change
+// (and a parameter there could never leave it): the solver holds every kinematic parameter
+// shifted by kShift, and the cost functions take it off again, so that each step is 3e-6 to
+// 6e-6 (angles in [-pi, pi], lengths within a few metres).
+constexpr double kShift = 4.0;
+
 struct ResidualFunctor {
   const Search* search;
+  int size;
   bool operator()(double const* const* parameters, double* residuals) const {
-    return Residual(*search, parameters[0], residuals);
+    const Vector k = Eigen::Map<const Vector>(parameters[0], size).array() - kShift;
+    return Residual(*search, k.data(), residuals);
   }
 };
 
-// Lengths pulled towards 0 (weight at each length entry, 0 at the angles).
-struct LengthPull {
+// The pull on what the torques leave free: each length towards 0 (w k), the tilt (entry 0)
+// towards a horizontal axis 1 (w (1 - |sin k|)); weight 0 elsewhere.
+struct Pull {
   Vector weights;
   bool operator()(double const* const* parameters, double* residuals) const {
-    for (Eigen::Index i = 0; i < weights.size(); ++i) residuals[i] = weights[i] * parameters[0][i];
+    for (Eigen::Index i = 0; i < weights.size(); ++i) {
+      const double k = parameters[0][i] - kShift;
+      residuals[i] = weights[i] * (i == 0 ? 1.0 - std::abs(std::sin(k)) : k);
+    }
     return true;
   }
 };
@@ -150,7 +126,7 @@ Vector RandomStart(int N, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::uniform_int_distribution<int> quarter(-1, 1), turn(-1, 2);
   std::bernoulli_distribution half(0.5), mostly(0.75);
-  const std::vector<Entry> layout = Layout(N);
+  const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
   Vector k(static_cast<Eigen::Index>(layout.size()));
   k[0] = mostly(*rng) ? 0.0 : M_PI / 2;  // the tilt
   for (size_t i = 1; i < layout.size(); ++i) {
@@ -171,25 +147,29 @@ Vector RandomStart(int N, std::mt19937_64* rng) {
 double Minimise(const Search& search, int max_iterations, Vector* k) {
   ceres::Problem problem;
   auto* cost = new ceres::DynamicNumericDiffCostFunction<ResidualFunctor, ceres::FORWARD>(
-      new ResidualFunctor{&search});
+      new ResidualFunctor{&search, static_cast<int>(k->size())});
   cost->AddParameterBlock(static_cast<int>(k->size()));
   cost->SetNumResiduals(static_cast<int>(search.y.size()));
-  problem.AddResidualBlock(cost, nullptr, k->data());
   // Lengths that no torque determines (the offsets along two parallel axes trade off, say)
   // stay small: a pull of 1e-6 per m^2 on the mean cost, a thousandth of a 1% residual's for
-  // lengths of 0.3 m, the size of the minimum where they do show.
-  const std::vector<Entry> layout = Layout(search.N);
+  // lengths of 0.3 m, the size of the minimum where they do show. The same weight on
+  // 1 - |sin(tilt)|: when every axis is parallel to the first, gravity's torque only scales with
+  // sin(tilt), which the first moments absorb, and a search from a vertical axis 1 stops just
+  // off it, where the first moments must be huge to keep the cost (a chain that explains the
+  // log, and that rbd's prior cannot hold). Where the torques show the tilt (any other arm),
+  // this moves it by about 1e-6 / (the cost's curvature in it): 1e-5 rad or less.
+  const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(search.N);
+  const double weight = std::sqrt(1e-6 * static_cast<double>(search.y.size()));
   Vector weights(k->size());
   for (Eigen::Index i = 0; i < k->size(); ++i) {
-    weights[i] = IsLength(layout[static_cast<size_t>(i)])
-                     ? std::sqrt(1e-6 * static_cast<double>(search.y.size()))
-                     : 0.0;
+    weights[i] = i == 0 || layout[static_cast<size_t>(i)].is_length() ? weight : 0.0;
   }
-  auto* pull = new ceres::DynamicNumericDiffCostFunction<LengthPull, ceres::FORWARD>(
-      new LengthPull{weights});
+  auto* pull = new ceres::DynamicNumericDiffCostFunction<Pull, ceres::FORWARD>(new Pull{weights});
   pull->AddParameterBlock(static_cast<int>(k->size()));
   pull->SetNumResiduals(static_cast<int>(k->size()));
-  problem.AddResidualBlock(pull, nullptr, k->data());
+  Vector shifted = k->array() + kShift;
+  problem.AddResidualBlock(cost, nullptr, shifted.data());
+  problem.AddResidualBlock(pull, nullptr, shifted.data());
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_QR;
   solver.max_num_iterations = max_iterations;
@@ -200,9 +180,10 @@ double Minimise(const Search& search, int max_iterations, Vector* k) {
   if (!result.IsSolutionUsable() || !std::isfinite(result.final_cost)) {
     return std::numeric_limits<double>::infinity();
   }
+  *k = shifted.array() - kShift;
   // The cost of the fit alone (without the pull), the angles in [-pi, pi].
   for (Eigen::Index i = 0; i < k->size(); ++i) {
-    if (weights[i] == 0.0) (*k)[i] = std::remainder((*k)[i], 2.0 * M_PI);
+    if (!layout[static_cast<size_t>(i)].is_length()) (*k)[i] = std::remainder((*k)[i], 2.0 * M_PI);
   }
   std::vector<double> r(search.y.size());
   if (!Residual(search, k->data(), r.data())) return std::numeric_limits<double>::infinity();
@@ -229,91 +210,72 @@ void SetRows(const ConstMatrixRef& X, const ConstMatrixRef& Y, Eigen::Index coun
   s->y = StackScaled(SelectRows(Y, rows), s->scale);
 }
 
-// A robot name the URDF's XML can hold as written.
-void CheckRobotName(const char* where, const std::string& name) {
-  for (char c : name) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
-      throw std::invalid_argument(std::string(where) + ": robot name '" + name +
-                                  "': letters, digits, '_', '-' and '.' only (it is written "
-                                  "into the URDF)");
+// What the search rows determine of each kinematic parameter (the summary's cost_change,
+// faster_change and undetermined): each moved alone by 0.1, the linear parameters fitted again.
+void Determination(const Search& search, ChainIdentificationSummary* summary) {
+  const int N = search.N;
+  constexpr double kStep = 0.1, kFaster = 2.0;
+  Matrix faster = search.X;
+  faster.middleCols(N, N) *= kFaster;
+  faster.middleCols(2 * N, N) *= kFaster * kFaster;
+  // The cost on the search rows and the predicted torques of the faster rows (scaled, stacked).
+  auto fit = [&](const Vector& k, double* cost, Vector* residual, Vector* fast) {
+    const RigidBodyChain chain = RigidBodyChain::FromUrdfString(ChainUrdf(N, k));
+    const Matrix A = Design(chain, search.X, search.scale, *search.columns);
+    const Vector theta = Solve(A, search.y);
+    *residual = search.y - A * theta;
+    *cost = residual->squaredNorm() / static_cast<double>(residual->size());
+    *fast = Design(chain, faster, search.scale, *search.columns) * theta;
+  };
+  const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
+  const Eigen::Index K = static_cast<Eigen::Index>(layout.size());
+  summary->cost_change = Vector::Constant(K, std::numeric_limits<double>::quiet_NaN());
+  summary->faster_change = summary->cost_change;
+  double cost = 0.0;
+  Vector residual, fast;
+  try {
+    fit(summary->kinematics, &cost, &residual, &fast);
+  } catch (const std::logic_error&) {
+    return;  // no chain of these numbers: nothing to say
+  }
+  Vector noise = Vector::Zero(N);  // each joint's residual RMS on the rows
+  for (Eigen::Index r = 0; r < residual.size(); ++r) noise[r % N] += residual[r] * residual[r];
+  noise = (noise / static_cast<double>(search.X.rows())).cwiseSqrt();
+  for (Eigen::Index i = 0; i < K; ++i) {
+    Vector moved = summary->kinematics;
+    moved[i] += kStep;
+    double moved_cost = 0.0;
+    Vector moved_residual, moved_fast;
+    try {
+      fit(moved, &moved_cost, &moved_residual, &moved_fast);
+    } catch (const std::logic_error&) {
+      continue;
+    }
+    Vector change = Vector::Zero(N);
+    for (Eigen::Index r = 0; r < fast.size(); ++r) {
+      change[r % N] += (moved_fast[r] - fast[r]) * (moved_fast[r] - fast[r]);
+    }
+    change = (change / static_cast<double>(search.X.rows())).cwiseSqrt();
+    summary->cost_change[i] = moved_cost / std::max(cost, std::numeric_limits<double>::min()) - 1.0;
+    summary->faster_change[i] =
+        (change.array() / noise.array().max(std::numeric_limits<double>::min())).maxCoeff();
+    if (summary->cost_change[i] < 0.01 && summary->faster_change[i] > 1.0) {
+      summary->undetermined.push_back(static_cast<int>(i));
     }
   }
 }
 
 }  // namespace
 
-int NumChainKinematicParameters(int num_joints) {
-  if (num_joints < 1) throw std::invalid_argument("chain: at least one joint");
-  return num_joints >= 2 ? 4 * num_joints - 4 : 1;
-}
-
-std::vector<std::string> ChainKinematicNames(int num_joints) {
-  NumChainKinematicParameters(num_joints);  // checks num_joints
-  static const char* const kFields[] = {"alpha", "a", "theta", "d"};
-  std::vector<std::string> names;
-  for (const Entry& e : Layout(num_joints)) {
-    names.push_back(names.empty() ? std::string("tilt")
-                                  : kFields[static_cast<int>(e.field)] + std::to_string(e.joint + 1));
-  }
-  return names;
-}
-
-std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
-                      const std::string& robot_name) {
-  const int N = num_joints;
-  if (kinematics.size() != NumChainKinematicParameters(N)) {
-    throw std::invalid_argument("ChainUrdf: " + std::to_string(kinematics.size()) +
-                                " kinematic parameters, expected " +
-                                std::to_string(NumChainKinematicParameters(N)) + " for " +
-                                std::to_string(N) + " joints");
-  }
-  if (!kinematics.allFinite()) throw std::invalid_argument("ChainUrdf: a non-finite parameter");
-  CheckRobotName("ChainUrdf", robot_name);
-  const std::vector<Dh> dh = DhOf(N, kinematics);
-  std::ostringstream os;
-  os << "<?xml version=\"1.0\"?>\n"
-     << "<!-- A serial chain identified from joint torques by structgp (structgp identify): its\n"
-     << "     kinematics, modified Denavit-Hartenberg, joint i: alpha a theta d\n";
-  for (int i = 0; i < N; ++i) {
-    const Dh& j = dh[static_cast<size_t>(i)];
-    os << "       joint" << i + 1 << " " << Num(j.alpha) << " " << Num(j.a) << " " << Num(j.theta)
-       << " " << Num(j.d) << "\n";
-  }
-  os << "     The inertial values are placeholders (1 kg, 0.01 kg m^2 at each link's origin):\n"
-     << "     the rbd models identify them from the data. -->\n"
-     << "<robot name=\"" << robot_name << "\">\n  <link name=\"base\"/>\n";
-  for (int i = 0; i < N; ++i) {
-    const Dh& j = dh[static_cast<size_t>(i)];
-    const KDL::Frame f = KDL::Frame(KDL::Rotation::RotX(j.alpha)) *
-                         KDL::Frame(KDL::Vector(j.a, 0.0, 0.0)) *
-                         KDL::Frame(KDL::Rotation::RotZ(j.theta)) *
-                         KDL::Frame(KDL::Vector(0.0, 0.0, j.d));
-    double roll = 0.0, pitch = 0.0, yaw = 0.0;
-    f.M.GetRPY(roll, pitch, yaw);
-    const std::string parent = i == 0 ? "base" : "link" + std::to_string(i);
-    const std::string child = "link" + std::to_string(i + 1);
-    os << "  <joint name=\"joint" << i + 1 << "\" type=\"continuous\">\n"
-       << "    <parent link=\"" << parent << "\"/>\n    <child link=\"" << child << "\"/>\n"
-       << "    <origin xyz=\"" << Num(f.p.x()) << " " << Num(f.p.y()) << " " << Num(f.p.z())
-       << "\" rpy=\"" << Num(roll) << " " << Num(pitch) << " " << Num(yaw) << "\"/>\n"
-       << "    <axis xyz=\"0 0 1\"/>\n  </joint>\n"
-       << "  <link name=\"" << child << "\">\n    <inertial>\n"
-       << "      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <mass value=\"1\"/>\n"
-       << "      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n"
-       << "    </inertial>\n  </link>\n";
-  }
-  os << "</robot>\n";
-  return os.str();
-}
-
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                          const ChainIdentificationOptions& options) {
   const int N = static_cast<int>(Y.cols());
   if (N < 1) throw std::invalid_argument("IdentifyChain: no torque columns");
-  if (X.cols() != 3 * N) {
+  if (X.cols() != 3 * N && X.cols() != 3 * N + 1) {
     throw std::invalid_argument("IdentifyChain: " + std::to_string(X.cols()) +
                                 " input columns, expected 3 N = " + std::to_string(3 * N) +
-                                " (q, qd, qdd of " + std::to_string(N) + " joints)");
+                                " (q, qd, qdd of " + std::to_string(N) +
+                                " joints), or 3 N + 1 with the time last");
   }
   if (X.rows() != Y.rows() || X.rows() < 2) {
     throw std::invalid_argument("IdentifyChain: " + std::to_string(X.rows()) + " input rows and " +
@@ -326,11 +288,11 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   if (!(options.friction_width > 0.0) || !std::isfinite(options.friction_width) ||
       options.search_rows < 2 || options.starts < 1 || options.max_iterations < 1 ||
       options.kept_starts < 1 || options.screen_rows < 2 || options.screen_iterations < 1 ||
-      options.num_threads < 1) {
+      options.max_rounds < 1 || options.num_threads < 1) {
     throw std::invalid_argument(
         "IdentifyChain: options out of range (friction_width > 0, search_rows >= 2, starts >= 1, "
         "kept_starts >= 1, screen_rows >= 2, screen_iterations >= 1, "
-        "max_iterations >= 1, num_threads >= 1)");
+        "max_iterations >= 1, max_rounds >= 1, num_threads >= 1)");
   }
   if (options.initial_kinematics.size() != 0 &&
       (options.initial_kinematics.size() != NumChainKinematicParameters(N) ||
@@ -341,9 +303,42 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
                                 std::to_string(NumChainKinematicParameters(N)));
   }
   CheckRobotName("IdentifyChain", options.robot_name);  // before the search, not after it
-  // Each row gives N torques; 11 N inertial parameters (and 2 N friction coefficients) are
-  // fitted on every set of rows: with fewer than twice as many torques any chain fits.
-  const Eigen::Index unknowns = 11 * N + (options.friction ? 2 * N : 0);
+  // The columns beside the chain's: friction and the effects, each on its joints.
+  Columns columns;
+  columns.options.friction = options.friction;
+  columns.options.friction_width = options.friction_width;
+  int effect_columns = 0;
+  for (const EffectSpec& e : options.effects) {
+    std::shared_ptr<const Effect> effect;
+    try {
+      effect = MakeEffect(e.name, e.params);
+    } catch (const std::invalid_argument& error) {
+      throw std::invalid_argument("IdentifyChain: effect '" + ToString(e) + "': " + error.what());
+    }
+    for (int j : e.joints) {
+      if (j < 1 || j > N) {
+        throw std::invalid_argument("IdentifyChain: effect '" + ToString(e) + "' names joint " +
+                                    std::to_string(j) + ", but the robot has " +
+                                    std::to_string(N) + " joints");
+      }
+    }
+    if (effect->uses_time()) {
+      if (X.cols() != 3 * N + 1) {
+        throw std::invalid_argument("IdentifyChain: effect '" + ToString(e) +
+                                    "' uses the time: X needs the time t as its last column");
+      }
+      columns.options.with_time = true;
+    }
+    const int joints = effect->joint_independent() ? 1
+                       : e.joints.empty()         ? N
+                                                  : static_cast<int>(e.joints.size());
+    effect_columns += effect->num_bases() * joints;
+    columns.options.effects.push_back({ToString(e), std::move(effect), e.joints});
+  }
+  // Each row gives N torques; 11 N inertial parameters (with friction 3 N coefficients, and the
+  // effects' bases) are fitted on every set of rows: with fewer than twice as many torques any
+  // chain fits.
+  const Eigen::Index unknowns = 11 * N + (options.friction ? 3 * N : 0) + effect_columns;
   const Eigen::Index fewest =
       std::min<Eigen::Index>({X.rows(), options.search_rows,
                               options.kept_starts < options.starts ? options.screen_rows
@@ -366,64 +361,81 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
 
   Search search;
   search.N = N;
-  search.options = &options;
+  search.columns = &columns;
   search.scale = summary.torque_rms;
 
-  // Screening: every random start a few iterations on few rows; the kept_starts of least cost
-  // go on to the end on search_rows rows.
+  // Rounds of starts: every random start of a round a few iterations on few rows (screening),
+  // its kept_starts of least cost to the end on search_rows rows; another round while fewer
+  // than two kept starts have reached the best cost.
   std::mt19937_64 rng(options.seed);
-  std::vector<Vector> found;
-  for (int s = 0; s < options.starts; ++s) found.push_back(RandomStart(N, &rng));
-  std::vector<double> screened(found.size(), std::numeric_limits<double>::infinity());
-  auto run = [&](const std::vector<size_t>& which, int iterations, std::vector<double>* costs) {
-    const int workers = std::max(1, std::min<int>(options.num_threads, static_cast<int>(which.size())));
+  auto run = [&](std::vector<Vector>* starts, int iterations, std::vector<double>* costs) {
+    const int workers =
+        std::max(1, std::min<int>(options.num_threads, static_cast<int>(starts->size())));
     internal::RunWorkers(workers, [&](int w) {
-      for (size_t i = static_cast<size_t>(w); i < which.size(); i += static_cast<size_t>(workers)) {
-        (*costs)[which[i]] = Minimise(search, iterations, &found[which[i]]);
+      for (size_t i = static_cast<size_t>(w); i < starts->size(); i += static_cast<size_t>(workers)) {
+        (*costs)[i] = Minimise(search, iterations, &(*starts)[i]);
       }
     });
   };
-  std::vector<size_t> all(found.size());
-  std::iota(all.begin(), all.end(), size_t{0});
-  std::vector<size_t> kept = all;
-  if (options.kept_starts < options.starts) {
-    SetRows(X, Y, options.screen_rows, &search);
-    run(all, options.screen_iterations, &screened);
-    std::stable_sort(kept.begin(), kept.end(),
-                     [&](size_t a, size_t b) { return screened[a] < screened[b]; });
-    kept.resize(static_cast<size_t>(options.kept_starts));
+  const bool screening = options.kept_starts < options.starts;
+  double best = std::numeric_limits<double>::infinity();
+  for (int round = 0; round < options.max_rounds; ++round) {
+    std::vector<Vector> drawn;
+    for (int s = 0; s < options.starts; ++s) drawn.push_back(RandomStart(N, &rng));
+    std::vector<int> index(drawn.size());
+    std::iota(index.begin(), index.end(), round * options.starts);
+    if (screening) {
+      SetRows(X, Y, options.screen_rows, &search);
+      std::vector<double> screened(drawn.size(), std::numeric_limits<double>::infinity());
+      run(&drawn, options.screen_iterations, &screened);
+      std::vector<size_t> order(drawn.size());
+      std::iota(order.begin(), order.end(), size_t{0});
+      std::stable_sort(order.begin(), order.end(),
+                       [&](size_t a, size_t b) { return screened[a] < screened[b]; });
+      order.resize(static_cast<size_t>(options.kept_starts));
+      std::vector<Vector> kept;
+      std::vector<int> kept_index;
+      for (size_t i : order) {
+        kept.push_back(drawn[i]);
+        kept_index.push_back(index[i]);
+      }
+      drawn = std::move(kept);
+      index = std::move(kept_index);
+    }
+    if (round == 0 && options.initial_kinematics.size() > 0) {
+      drawn.push_back(options.initial_kinematics);
+      index.push_back(-1);
+    }
+    SetRows(X, Y, options.search_rows, &search);
+    std::vector<double> costs(drawn.size(), std::numeric_limits<double>::infinity());
+    run(&drawn, options.max_iterations, &costs);
+    for (size_t i = 0; i < drawn.size(); ++i) {
+      summary.starts.push_back(index[i]);
+      summary.start_costs.push_back(costs[i]);
+      if (costs[i] < best) {
+        best = costs[i];
+        summary.best_start = index[i];
+        summary.kinematics = drawn[i];
+      }
+    }
+    summary.rounds = round + 1;
+    summary.starts_at_best = 0;
+    for (double c : summary.start_costs) {
+      summary.starts_at_best += c <= 1.01 * best + 1e-12 ? 1 : 0;  // noise-free logs: best ~ 0
+    }
+    if (summary.starts_at_best >= 2) break;
   }
-  if (options.initial_kinematics.size() > 0) {
-    found.push_back(options.initial_kinematics);
-    kept.push_back(found.size() - 1);
-  }
-  SetRows(X, Y, options.search_rows, &search);
-  std::vector<double> costs(found.size(), std::numeric_limits<double>::infinity());
-  run(kept, options.max_iterations, &costs);
-  for (size_t i : kept) {
-    summary.starts.push_back(static_cast<int>(i));
-    summary.start_costs.push_back(costs[i]);
-  }
-  const size_t winner = kept[static_cast<size_t>(
-      std::min_element(summary.start_costs.begin(), summary.start_costs.end()) -
-      summary.start_costs.begin())];
-  summary.best_start = static_cast<int>(winner);
-  const double best = costs[winner];
   if (!std::isfinite(best)) {
     throw std::runtime_error("IdentifyChain: no start gave a chain whose torques could be fitted");
   }
-  for (double c : summary.start_costs) {
-    summary.starts_at_best += c <= 1.01 * best + 1e-12 ? 1 : 0;  // noise-free logs: best ~ 0
-  }
-  summary.kinematics = found[winner];
   // Moves out of a local minimum: each length of the best chain set to 0 in turn (most arms
   // have intersecting or coplanar axes, which a search from a random start can miss) and the
   // search run again from there; a move that lowers the cost by 1% is kept.
   if (options.length_moves) {
     double cost = best;
-    const std::vector<Entry> layout = Layout(N);
+    const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
     for (Eigen::Index i = 0; i < summary.kinematics.size(); ++i) {
-      if (!IsLength(layout[static_cast<size_t>(i)]) || std::abs(summary.kinematics[i]) < 0.02) {
+      if (!layout[static_cast<size_t>(i)].is_length() || std::abs(summary.kinematics[i]) < 0.02) {
         continue;
       }
       Vector moved = summary.kinematics;
@@ -444,6 +456,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     summary.refined_cost = Minimise(search, options.max_iterations, &refined);
     if (std::isfinite(summary.refined_cost)) summary.kinematics = refined;
   }
+  Determination(search, &summary);
   summary.urdf = ChainUrdf(N, summary.kinematics, options.robot_name);
 
   // The residual on every row with the identified kinematics: the normal equations and then
@@ -452,7 +465,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   constexpr Eigen::Index kBlock = 1000;
   auto block_rows = [&](Eigen::Index begin, Matrix* A, Vector* y) {
     const Eigen::Index n = std::min(kBlock, X.rows() - begin);
-    *A = Design(chain, X.middleRows(begin, n), search.scale, options);
+    *A = Design(chain, X.middleRows(begin, n), search.scale, columns);
     *y = StackScaled(Y.middleRows(begin, n), search.scale);
   };
   Matrix A;

@@ -1,0 +1,129 @@
+#include "structgp/rigid_body/dh_chain.h"
+
+#include <cctype>
+#include <sstream>
+#include <stdexcept>
+
+#include <kdl/frames.hpp>
+
+#include "structgp/internal/text.h"
+
+namespace structgp {
+namespace {
+
+// Numbers that read back to the same double.
+std::string Num(double value) { return internal::ShortestDecimal(value); }
+
+// Modified DH of one joint.
+struct Dh {
+  double alpha = 0.0, a = 0.0, theta = 0.0, d = 0.0;
+};
+
+std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
+  std::vector<Dh> dh(static_cast<size_t>(N));
+  const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
+  for (size_t i = 0; i < layout.size(); ++i) {
+    Dh& j = dh[static_cast<size_t>(layout[i].joint)];
+    double* field[] = {&j.alpha, &j.a, &j.theta, &j.d};
+    *field[static_cast<int>(layout[i].field)] = k[static_cast<Eigen::Index>(i)];
+  }
+  return dh;
+}
+
+}  // namespace
+
+std::vector<ChainKinematicParameter> ChainKinematicLayout(int num_joints) {
+  const int N = num_joints;
+  if (N < 1) throw std::invalid_argument("chain: at least one joint, got " + std::to_string(N));
+  using Field = ChainKinematicParameter::Field;
+  static const char* const kFields[] = {"alpha", "a", "theta", "d"};
+  std::vector<ChainKinematicParameter> layout;
+  auto add = [&](int joint, Field field) {
+    layout.push_back({joint, field,
+                      layout.empty() ? std::string("tilt")
+                                     : kFields[static_cast<int>(field)] + std::to_string(joint + 1)});
+  };
+  add(0, Field::kAlpha);
+  if (N >= 2) {
+    add(0, Field::kTheta);
+    add(1, Field::kAlpha);
+    add(1, Field::kA);
+  }
+  for (int i = 1; i < N - 1; ++i) {
+    add(i, Field::kTheta);
+    add(i, Field::kD);
+    add(i + 1, Field::kAlpha);
+    add(i + 1, Field::kA);
+  }
+  return layout;
+}
+
+int NumChainKinematicParameters(int num_joints) {
+  return static_cast<int>(ChainKinematicLayout(num_joints).size());
+}
+
+std::vector<std::string> ChainKinematicNames(int num_joints) {
+  std::vector<std::string> names;
+  for (const ChainKinematicParameter& p : ChainKinematicLayout(num_joints)) names.push_back(p.name);
+  return names;
+}
+
+void CheckRobotName(const std::string& where, const std::string& name) {
+  for (char c : name) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) {
+      throw std::invalid_argument(where + ": robot name '" + name +
+                                  "': letters, digits, '_', '-' and '.' only (it is written "
+                                  "into the URDF)");
+    }
+  }
+}
+
+std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
+                      const std::string& robot_name) {
+  const int N = num_joints;
+  if (kinematics.size() != NumChainKinematicParameters(N)) {
+    throw std::invalid_argument("ChainUrdf: " + std::to_string(kinematics.size()) +
+                                " kinematic parameters, expected " +
+                                std::to_string(NumChainKinematicParameters(N)) + " for " +
+                                std::to_string(N) + " joints");
+  }
+  if (!kinematics.allFinite()) throw std::invalid_argument("ChainUrdf: a non-finite parameter");
+  CheckRobotName("ChainUrdf", robot_name);
+  const std::vector<Dh> dh = DhOf(N, kinematics);
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\"?>\n"
+     << "<!-- A serial chain identified from joint torques by structgp (structgp identify): its\n"
+     << "     kinematics, modified Denavit-Hartenberg, joint i: alpha a theta d\n";
+  for (int i = 0; i < N; ++i) {
+    const Dh& j = dh[static_cast<size_t>(i)];
+    os << "       joint" << i + 1 << " " << Num(j.alpha) << " " << Num(j.a) << " " << Num(j.theta)
+       << " " << Num(j.d) << "\n";
+  }
+  os << "     The inertial values are placeholders (1 kg, 0.01 kg m^2 at each link's origin):\n"
+     << "     the rbd models identify them from the data. -->\n"
+     << "<robot name=\"" << robot_name << "\">\n  <link name=\"base\"/>\n";
+  for (int i = 0; i < N; ++i) {
+    const Dh& j = dh[static_cast<size_t>(i)];
+    const KDL::Frame f = KDL::Frame(KDL::Rotation::RotX(j.alpha)) *
+                         KDL::Frame(KDL::Vector(j.a, 0.0, 0.0)) *
+                         KDL::Frame(KDL::Rotation::RotZ(j.theta)) *
+                         KDL::Frame(KDL::Vector(0.0, 0.0, j.d));
+    double roll = 0.0, pitch = 0.0, yaw = 0.0;
+    f.M.GetRPY(roll, pitch, yaw);
+    const std::string parent = i == 0 ? "base" : "link" + std::to_string(i);
+    const std::string child = "link" + std::to_string(i + 1);
+    os << "  <joint name=\"joint" << i + 1 << "\" type=\"continuous\">\n"
+       << "    <parent link=\"" << parent << "\"/>\n    <child link=\"" << child << "\"/>\n"
+       << "    <origin xyz=\"" << Num(f.p.x()) << " " << Num(f.p.y()) << " " << Num(f.p.z())
+       << "\" rpy=\"" << Num(roll) << " " << Num(pitch) << " " << Num(yaw) << "\"/>\n"
+       << "    <axis xyz=\"0 0 1\"/>\n  </joint>\n"
+       << "  <link name=\"" << child << "\">\n    <inertial>\n"
+       << "      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      <mass value=\"1\"/>\n"
+       << "      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n"
+       << "    </inertial>\n  </link>\n";
+  }
+  os << "</robot>\n";
+  return os.str();
+}
+
+}  // namespace structgp
