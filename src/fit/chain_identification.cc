@@ -157,7 +157,8 @@ double Minimise(const Search& search, int max_iterations, Vector* k) {
   // sin(tilt), which the first moments absorb, and a search from a vertical axis 1 stops just
   // off it, where the first moments must be huge to keep the cost (a chain that explains the
   // log, and that rbd's prior cannot hold). Where the torques show the tilt (any other arm),
-  // this moves it by about 1e-6 / (the cost's curvature in it): 1e-5 rad or less.
+  // this moves it by about 1e-6 / (the cost's curvature in it): 3e-4 rad on the three-link arm,
+  // whose vertical first axis carries little torque.
   const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(search.N);
   const double weight = std::sqrt(1e-6 * static_cast<double>(search.y.size()));
   Vector weights(k->size());
