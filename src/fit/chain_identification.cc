@@ -204,6 +204,13 @@ Vector StackScaled(const ConstMatrixRef& Y, const Vector& scale) {
   return y;
 }
 
+// Per joint, the sum of squares of a vector stacked as Design's rows.
+Vector JointSquares(const Vector& stacked, int N) {
+  Vector sum = Vector::Zero(N);
+  for (Eigen::Index r = 0; r < stacked.size(); ++r) sum[r % N] += stacked[r] * stacked[r];
+  return sum;
+}
+
 // The rows of the search, their torques stacked and scaled.
 void SetRows(const ConstMatrixRef& X, const ConstMatrixRef& Y, Eigen::Index count, Search* s) {
   const std::vector<int> rows = EvenlySpacedRows(X.rows(), std::min<Eigen::Index>(X.rows(), count));
@@ -239,9 +246,8 @@ void Determination(const Search& search, ChainIdentificationSummary* summary) {
   } catch (const std::logic_error&) {
     return;  // no chain of these numbers: nothing to say
   }
-  Vector noise = Vector::Zero(N);  // each joint's residual RMS on the rows
-  for (Eigen::Index r = 0; r < residual.size(); ++r) noise[r % N] += residual[r] * residual[r];
-  noise = (noise / static_cast<double>(search.X.rows())).cwiseSqrt();
+  const double rows = static_cast<double>(search.X.rows());
+  const Vector noise = (JointSquares(residual, N) / rows).cwiseSqrt();  // the residual RMS
   for (Eigen::Index i = 0; i < K; ++i) {
     Vector moved = summary->kinematics;
     moved[i] += kStep;
@@ -252,11 +258,7 @@ void Determination(const Search& search, ChainIdentificationSummary* summary) {
     } catch (const std::logic_error&) {
       continue;
     }
-    Vector change = Vector::Zero(N);
-    for (Eigen::Index r = 0; r < fast.size(); ++r) {
-      change[r % N] += (moved_fast[r] - fast[r]) * (moved_fast[r] - fast[r]);
-    }
-    change = (change / static_cast<double>(search.X.rows())).cwiseSqrt();
+    const Vector change = (JointSquares(moved_fast - fast, N) / rows).cwiseSqrt();
     summary->cost_change[i] = moved_cost / std::max(cost, std::numeric_limits<double>::min()) - 1.0;
     summary->faster_change[i] =
         (change.array() / noise.array().max(std::numeric_limits<double>::min())).maxCoeff();
@@ -487,8 +489,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   Vector sum = Vector::Zero(N);
   for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
     block_rows(begin, &A, &y);
-    const Vector r = y - A * theta;
-    for (Eigen::Index k = 0; k < r.size(); ++k) sum[k % N] += r[k] * r[k];
+    sum += JointSquares(y - A * theta, N);
   }
   summary.residual_rms.resize(N);
   for (int j = 0; j < N; ++j) {
