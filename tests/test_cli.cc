@@ -1191,7 +1191,44 @@ TEST(CliUrdf, IdentifyWritesAUrdfWhoseRbdModelPredictsAsTheRobotsOwn) {
   const Result cur = RunCli(dir, {"identify", "--data", dir.File("currents.csv"), "--out", urdf});
   EXPECT_EQ(cur.code, 2);
   EXPECT_TRUE(Contains(cur.err, "identify needs joint torques")) << cur.err;
+  // An effect list that does not parse, an effect on a joint the arm lacks, a time effect in a
+  // log without t: exit 2, the flag or the effect named.
+  const Result bad_list = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--out", urdf,
+                                       "--effects", "cogging@1:period=-1"});
+  EXPECT_EQ(bad_list.code, 2);
+  EXPECT_TRUE(Contains(bad_list.err, "--effects")) << bad_list.err;
+  const Result bad_joint = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--out", urdf,
+                                        "--effects", "offset@4"});
+  EXPECT_EQ(bad_joint.code, 2);
+  EXPECT_TRUE(Contains(bad_joint.err, "'offset@4' names joint 4, but the robot has 3"))
+      << bad_joint.err;
+  std::string untimed;
+  {
+    std::istringstream in(ReadFile(demo + "/train.csv"));
+    std::string line;
+    while (std::getline(in, line)) untimed += line.substr(line.find(',') + 1) + "\n";  // t first
+  }
+  ASSERT_TRUE(Contains(ReadFile(demo + "/train.csv").substr(0, 2), "t,"));
+  WriteFile(dir.File("untimed.csv"), untimed);
+  const Result no_time = RunCli(dir, {"identify", "--data", dir.File("untimed.csv"), "--out",
+                                      urdf, "--effects", "drift@2"});
+  EXPECT_EQ(no_time.code, 2);
+  EXPECT_TRUE(Contains(no_time.err, "'drift@2' uses the time")) << no_time.err;
   EXPECT_EQ(ReadFile(urdf), before);
+
+  // With an effect: fitted beside the chain, named in the summary and in the next command.
+  const Result with = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--out",
+                                   dir.File("with.urdf"), "--json", dir.File("with.json"),
+                                   "--effects", "drift@2", "--starts", "4", "--kept-starts", "2",
+                                   "--rounds", "1", "--threads", "2", "--quiet"});
+  ASSERT_EQ(with.code, 0) << with.err;
+  EXPECT_TRUE(Contains(with.out, "--effects 'drift@2' --out model.json"))
+      << with.out;
+  const Json with_summary = Json::parse(ReadFile(dir.File("with.json")));
+  EXPECT_EQ(with_summary["effects"].get<std::string>(), "drift@2");
+  EXPECT_EQ(with_summary["rounds"].get<int>(), 1);
+  EXPECT_EQ(with_summary["start_costs"].size(), 2u);
+  EXPECT_EQ(with_summary["cost_change"].size(), 8u);
 }
 
 // With --urdf and a kinematics-free model the demo says the model knows nothing of the robot.
