@@ -104,6 +104,22 @@ py::object TimesOrNone(const Vector& t) {
 py::object Json(const std::string& text) { return py::module_::import("json").attr("loads")(text); }
 
 // A model's training data given as train=(X, Y) or (X, Y, t).
+// Effects given as one list text ("coulomb@2,viscous") or a list of them; None: none.
+std::vector<EffectSpec> EffectList(const py::object& effects) {
+  std::vector<EffectSpec> list;
+  if (effects.is_none()) return list;
+  std::vector<std::string> items;
+  if (py::isinstance<py::str>(effects)) {
+    items.push_back(effects.cast<std::string>());
+  } else {
+    items = effects.cast<std::vector<std::string>>();
+  }
+  for (const std::string& item : items) {
+    for (EffectSpec& e : ParseEffectList(item)) list.push_back(std::move(e));
+  }
+  return list;
+}
+
 RobotData TrainingData(const py::object& train) {
   const py::tuple parts = train.cast<py::tuple>();
   if (parts.size() < 2 || parts.size() > 3) {
@@ -278,17 +294,7 @@ class Model {
       spec_ = ParseModelSpec(base.is_none() ? std::string("pol") : base.cast<std::string>());
       spec_.friction = !friction.is_none() && friction.cast<bool>();
     }
-    if (!effects.is_none()) {
-      std::vector<std::string> items;
-      if (py::isinstance<py::str>(effects)) {
-        items.push_back(effects.cast<std::string>());
-      } else {
-        items = effects.cast<std::vector<std::string>>();
-      }
-      for (const std::string& item : items) {
-        for (EffectSpec& e : ParseEffectList(item)) spec_.effects.push_back(std::move(e));
-      }
-    }
+    for (EffectSpec& e : EffectList(effects)) spec_.effects.push_back(std::move(e));
     if (gravity.size() != 3) {
       throw std::invalid_argument("gravity: expected three numbers (x, y, z in m/s^2), got " +
                                   std::to_string(gravity.size()));
@@ -815,17 +821,7 @@ void BindDiagnosis(py::module_& m) {
         }
         ChainIdentificationOptions o;
         o.friction = friction;
-        if (!effects.is_none()) {
-          std::vector<std::string> items;
-          if (py::isinstance<py::str>(effects)) {
-            items.push_back(effects.cast<std::string>());
-          } else {
-            items = effects.cast<std::vector<std::string>>();
-          }
-          for (const std::string& item : items) {
-            for (EffectSpec& e : ParseEffectList(item)) o.effects.push_back(std::move(e));
-          }
-        }
+        o.effects = EffectList(effects);
         o.starts = starts;
         o.max_rounds = rounds;
         o.search_rows = rows;
