@@ -283,6 +283,8 @@ DiagnosisOptions::Autocorrelation g_autocorrelation = DiagnosisOptions().autocor
 bool g_refit_from_model = true;
 // --threads: FitOptions::num_threads and the batch's of every fit of this program.
 int g_threads = 1;
+// The identification of model "chain" (--chain-starts, --chain-rounds, --chain-seed).
+ChainIdentificationOptions g_chain;
 
 std::string FitKey(const ModelSpec& spec, const Matrix& X, const Matrix& Y, const Vector& t,
                    int max_evidence_rows, const std::string& extra) {
@@ -597,7 +599,7 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
   // runs without a URDF: identify, fit rbd, diagnose, identify again with the suggestions).
   auto identify = [&](const std::vector<EffectSpec>& effects) {
     const auto begin = std::chrono::steady_clock::now();
-    ChainIdentificationOptions o;
+    ChainIdentificationOptions o = g_chain;
     o.num_threads = g_threads;
     o.effects = effects;
     Matrix X = logs.train.X;
@@ -1242,6 +1244,11 @@ int main(int argc, char** argv) {
   AddListFlag(&app, "--robots", &f.robots,
               "the simulator's robots (sim::RobotByName): puma560, panda, ur10, three_link, "
               "random1 .. random7");
+  AddFlag(&app, "--chain-starts", &structgp::g_chain.starts,
+          "model chain: random starts of each round of the identification");
+  AddFlag(&app, "--chain-rounds", &structgp::g_chain.max_rounds,
+          "model chain: rounds of starts at most");
+  AddFlag(&app, "--chain-seed", &structgp::g_chain.seed, "model chain: the starts' seed");
   AddFlag(&app, "--threads", &structgp::g_threads,
           "threads of the fits and refits of this program (as structgp fit --threads)");
   AddListFlag(&app, "--cases", &f.cases,

@@ -863,6 +863,7 @@ void BindDiagnosis(py::module_& m) {
         out["refined_cost"] = s.refined_cost;
         out["torque_rms"] = s.torque_rms;  // numpy arrays, as the module's other per-joint values
         out["residual_rms"] = s.residual_rms;
+        out["noise"] = s.noise;
         return out;
       },
       py::arg("X"), py::arg("Y"), py::arg("t") = py::none(), py::kw_only(),
@@ -883,7 +884,7 @@ void BindDiagnosis(py::module_& m) {
       "'start_costs', 'best_start', 'starts_at_best', 'rounds', 'moved_cost', 'moves_kept', "
       "'undetermined' (names of the kinematic parameters the log does not determine although "
       "faster motion would show them), 'cost_change' and 'faster_change' per parameter, "
-      "'refined_cost', 'torque_rms' and 'residual_rms' per joint (numpy arrays). Raises ValueError for bad "
+      "'refined_cost', 'torque_rms', 'residual_rms' and 'noise' (the residual's white noise) per joint (numpy arrays). Raises ValueError for bad "
       "input, structgp.Error when no start gives a chain.");
 
   m.def(

@@ -308,10 +308,15 @@ TEST(IdentifyChain, AnEffectNoChainMakesIsExplainedWhenGivenAndNotOtherwise) {
   options.max_rounds = 1;
   const ChainIdentificationSummary without = IdentifyChain(log.X, log.Y, options);
   EXPECT_GT(without.residual_rms[1], 3.0 * log.noise[1]);  // the ripple is left over
+  // ... and the summary says so: the residual's white noise is near the log's (the ripple's
+  // own steps from row to row raise it a little), its RMS far above.
+  EXPECT_NEAR(without.noise[1], log.noise[1], 0.25 * log.noise[1]);
+  EXPECT_GT(without.residual_rms[1], 3.0 * without.noise[1]);
   options.effects = ParseEffectList("cogging@2:period=0.3");
   const ChainIdentificationSummary with = IdentifyChain(log.X, log.Y, options);
   for (int j = 0; j < 2; ++j) {
     EXPECT_LT(with.residual_rms[j], 1.1 * log.noise[j]) << "joint " << j + 1;
+    EXPECT_NEAR(with.noise[j], log.noise[j], 0.1 * log.noise[j]) << "joint " << j + 1;
   }
   // The ripple's period wrong by a third: the effect does not fit, and the residual stays.
   options.effects = ParseEffectList("cogging@2:period=0.4");

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "structgp/core/noise_level.h"
 #include "structgp/core/segments.h"
 #include "structgp/diagnose/autocorrelation.h"
 #include "structgp/diagnose/diagnosis.h"

@@ -26,6 +26,9 @@ def test_identify_chain_agrees_with_the_program_and_its_urdf_fits(cli, demo, tmp
     assert found["rounds"] == summary["rounds"] >= 1
     assert found["undetermined"] == summary["undetermined"]
     assert found["cost_change"].shape == (4,) and found["faster_change"].shape == (4,)
+    # The demo's chain explains its log to the noise (1% of the largest torque, white).
+    assert np.allclose(found["noise"], [j["noise"] for j in summary["joints"]], rtol=1e-12)
+    assert np.all(found["residual_rms"] < 1.1 * found["noise"])
 
     path = tmp_path / "robot.urdf"
     path.write_text(found["urdf"])

@@ -172,14 +172,21 @@ class IdentifyCommand : public Command {
     std::fprintf(text_out, "\n       (cost: the mean squared residual, each joint's torque divided "
                            "by its RMS)\n");
     std::vector<std::vector<std::string>> rows = {
-        {"joint", "torque RMS", "residual RMS", "residual / torque"}};
+        {"joint", "torque RMS", "residual RMS", "residual / torque", "noise", "residual / noise"}};
+    // A residual well above the white noise in it: a smooth misfit the chain leaves.
+    constexpr double kMisfit = 1.5;
+    std::string misfit;
     for (int j = 0; j < N; ++j) {
+      const double ratio = s.residual_rms[j] / s.noise[j];
       doc["joints"].push_back({{"joint", j + 1},
                                {"torque_rms", s.torque_rms[j]},
-                               {"residual_rms", s.residual_rms[j]}});
+                               {"residual_rms", s.residual_rms[j]},
+                               {"noise", s.noise[j]}});
       rows.push_back({std::to_string(j + 1), Format("%.4g", s.torque_rms[j]),
                       Format("%.4g", s.residual_rms[j]),
-                      Percent(s.residual_rms[j] / s.torque_rms[j])});
+                      Percent(s.residual_rms[j] / s.torque_rms[j]), Format("%.4g", s.noise[j]),
+                      Format("%.3g", ratio)});
+      if (!(ratio <= kMisfit)) misfit += (misfit.empty() ? "" : ", ") + std::to_string(j + 1);
     }
     std::fputs(Table(rows).c_str(), text_out);
     std::string kinematics;
@@ -202,6 +209,17 @@ class IdentifyCommand : public Command {
                    "motion would show:%s\n  their values are a guess; a model on this URDF may "
                    "predict other motion badly: identify on a log with faster and wider motion\n",
                    s.undetermined.size(), s.undetermined.size() > 1 ? "s" : "", list.c_str());
+    }
+    if (!misfit.empty()) {
+      std::fprintf(text_out,
+                   "warning: the residual is more than %.3g times its white noise on joint%s %s "
+                   "(noise: from the residual's successive differences): the chain misses a "
+                   "smooth part of those torques. Either the search stopped at a wrong chain "
+                   "(try --rounds %d, or another --seed) or the log holds what no chain makes "
+                   "(fit rbd+fri on this URDF, diagnose it, and identify again with the "
+                   "--effects it names)\n",
+                   kMisfit, misfit.find(',') == std::string::npos ? "" : "s", misfit.c_str(),
+                   2 * options_.max_rounds);
     }
     if (s.starts_at_best < 2 && kept > 1) {
       std::fprintf(text_out,

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "structgp/core/validate.h"
+#include "structgp/core/noise_level.h"
 #include "structgp/diagnose/autocorrelation.h"
 #include "structgp/feature/effect_feature_map.h"
 #include "structgp/feature/effects.h"

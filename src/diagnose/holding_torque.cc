@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "structgp/core/validate.h"
+#include "structgp/core/noise_level.h"
 #include "structgp/diagnose/autocorrelation.h"
 
 namespace structgp {

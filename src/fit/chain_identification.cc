@@ -11,7 +11,9 @@
 #include <Eigen/Cholesky>
 #include <ceres/ceres.h>
 
+#include "structgp/core/noise_level.h"
 #include "structgp/core/row_subset.h"
+#include "structgp/core/segments.h"
 #include "structgp/feature/effects.h"
 #include "structgp/feature/rigid_body_regressor_map.h"
 #include "structgp/feature/semi_parametric_regressor_map.h"
@@ -486,15 +488,21 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     }
   }
   const Vector theta = SolveNormal(G, g);
-  Vector sum = Vector::Zero(N);
+  Matrix residual(X.rows(), N);  // row by row, in the torques' units
   for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
     block_rows(begin, &A, &y);
-    sum += JointSquares(y - A * theta, N);
+    const Vector r = y - A * theta;
+    for (Eigen::Index k = 0; k < r.size(); ++k) {
+      residual(begin + k / N, k % N) = r[k] * search.scale[k % N];
+    }
   }
-  summary.residual_rms.resize(N);
-  for (int j = 0; j < N; ++j) {
-    summary.residual_rms[j] = search.scale[j] * std::sqrt(sum[j] / static_cast<double>(X.rows()));
-  }
+  summary.residual_rms =
+      (residual.colwise().squaredNorm() / static_cast<double>(X.rows())).cwiseSqrt().transpose();
+  // The residual's white noise, within the log's trajectories when it has the time.
+  const std::vector<int> segments =
+      X.cols() == 3 * N + 1 ? SegmentStarts(X.col(3 * N)) : std::vector<int>{0};
+  summary.noise.resize(N);
+  for (int j = 0; j < N; ++j) summary.noise[j] = NoiseFromDifferences(residual.col(j), segments);
   return summary;
 }
 

@@ -70,12 +70,6 @@ double PrewhiteningInflation(const ConstVectorRef& r_before, const ConstVectorRe
                              const ConstMatrixRef& E, const std::vector<int>& segment_starts,
                              int max_order = 20);
 
-/// The spread of the white noise in x, from its successive differences within segments
-/// (segment_starts as SegmentStarts gives them; a difference never spans a restart): the median
-/// absolute difference over 0.674 sqrt 2, which a slow wander of x does not move. 0 when no
-/// segment has two rows.
-double NoiseFromDifferences(const ConstVectorRef& x, const std::vector<int>& segment_starts);
-
 /// First lag at which the mean autocorrelation of the columns of R falls below level (at most
 /// min(m / 4, 2000)): how many rows apart two residuals must be to count as unrelated.
 int CorrelationLength(const ConstMatrixRef& R, const std::vector<int>& segment_starts,

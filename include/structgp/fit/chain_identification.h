@@ -99,6 +99,12 @@ struct ChainIdentificationSummary {
   /// explain the rest).
   Vector torque_rms;
   Vector residual_rms;
+  /// Per joint, the white noise in that residual (NoiseFromDifferences, core/noise_level.h:
+  /// from its successive differences, within the log's trajectories when X has the time), which
+  /// a smooth misfit does not move: residual_rms near it where the chain and the columns beside
+  /// it explain the rest; well above it (1.5 times, say) where the search stopped at a wrong
+  /// chain, or the torques hold something no chain makes.
+  Vector noise;
   /// Kept starts whose cost is within 1% of the best one's (the same minimum found again).
   int starts_at_best = 0;
   /// Rounds of starts drawn (1 when two kept starts of the first reached the best).
