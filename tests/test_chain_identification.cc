@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -363,6 +364,27 @@ TEST(IdentifyChain, DrawsRoundsOfStartsUntilTwoReachTheBestCost) {
   EXPECT_EQ(one.start_costs.front(), id.start_costs.front());
 }
 
+// A chain that leaves a smooth misfit (the ripple, not given as an effect) draws every round;
+// the same search with the misfit rule off stops when two starts agree.
+TEST(IdentifyChain, DrawsRoundsWhileTheChainLeavesMoreThanTheNoise) {
+  const RippleLog log = TwoLinkRippleLog(3);
+  ChainIdentificationOptions options;
+  options.starts = 4;
+  options.kept_starts = 2;
+  options.max_rounds = 2;
+  options.length_moves = false;
+  const ChainIdentificationSummary id = IdentifyChain(log.X, log.Y, options);
+  EXPECT_GT(id.residual_rms[1], options.misfit_ratio * id.noise[1]);
+  EXPECT_EQ(id.rounds, 2);
+  EXPECT_EQ(id.starts.size(), 4u);
+  options.misfit_ratio = std::numeric_limits<double>::infinity();
+  const ChainIdentificationSummary agreed = IdentifyChain(log.X, log.Y, options);
+  if (agreed.rounds == 1) EXPECT_GE(agreed.starts_at_best, 2);
+  // The first round is the same search: its kept starts end at the same costs.
+  EXPECT_EQ(agreed.start_costs[0], id.start_costs[0]);
+  EXPECT_EQ(agreed.start_costs[1], id.start_costs[1]);
+}
+
 TEST(IdentifyChain, RefusesBadInputNamingIt) {
   const Matrix X = RandomStates(2, 40, 1);
   Matrix Y = Matrix::Ones(40, 2);
@@ -394,6 +416,9 @@ TEST(IdentifyChain, RefusesBadInputNamingIt) {
   o = ChainIdentificationOptions();
   o.max_rounds = 0;
   EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("max_rounds >= 1"), std::string::npos);
+  o = ChainIdentificationOptions();
+  o.misfit_ratio = std::nan("");
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("misfit_ratio > 0"), std::string::npos);
   // Effects: a joint the robot lacks, the time an effect needs, the bases counted as unknowns.
   o = ChainIdentificationOptions();
   o.effects = ParseEffectList("cogging@3:period=0.3");

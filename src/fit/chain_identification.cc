@@ -270,6 +270,100 @@ void Determination(const Search& search, ChainIdentificationSummary* summary) {
   }
 }
 
+// True when the finished chain leaves more than `ratio` times its residual's white noise on
+// some joint (a smooth misfit).
+bool Misfit(const ChainIdentificationSummary& summary, double ratio) {
+  for (Eigen::Index j = 0; j < summary.residual_rms.size(); ++j) {
+    if (summary.residual_rms[j] > ratio * summary.noise[j]) return true;
+  }
+  return false;
+}
+
+// The best start's chain finished: length moves and refinement from `kinematics` (cost `best`
+// on the search rows), what the rows determine, the URDF, and the residual on every row with
+// its white noise.
+void Finish(const ConstMatrixRef& X, const ConstMatrixRef& Y,
+            const ChainIdentificationOptions& options, const Columns& columns, double best,
+            const Vector& kinematics, Search* search, ChainIdentificationSummary* summary) {
+  const int N = search->N;
+  summary->kinematics = kinematics;
+  summary->moves_kept = 0;
+  summary->moved_cost = std::numeric_limits<double>::quiet_NaN();
+  summary->refined_cost = std::numeric_limits<double>::quiet_NaN();
+  summary->undetermined.clear();
+  SetRows(X, Y, options.search_rows, search);
+  // Moves out of a local minimum: each length of the best chain set to 0 in turn (most arms
+  // have intersecting or coplanar axes, which a search from a random start can miss) and the
+  // search run again from there; a move that lowers the cost by 1% is kept.
+  if (options.length_moves) {
+    double cost = best;
+    const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
+    for (Eigen::Index i = 0; i < summary->kinematics.size(); ++i) {
+      if (!layout[static_cast<size_t>(i)].is_length() || std::abs(summary->kinematics[i]) < 0.02) {
+        continue;
+      }
+      Vector moved = summary->kinematics;
+      moved[i] = 0.0;
+      const double c = Minimise(*search, options.max_iterations, &moved);
+      if (c < 0.99 * cost) {
+        cost = c;
+        summary->kinematics = moved;
+        ++summary->moves_kept;
+      }
+    }
+    summary->moved_cost = cost;
+  }
+  // The best start refined on more rows: the search rows' noise moves the minimum a little.
+  if (options.refine_rows > options.search_rows && X.rows() > options.search_rows) {
+    SetRows(X, Y, options.refine_rows, search);
+    Vector refined = summary->kinematics;
+    summary->refined_cost = Minimise(*search, options.max_iterations, &refined);
+    if (std::isfinite(summary->refined_cost)) summary->kinematics = refined;
+  }
+  Determination(*search, summary);
+  summary->urdf = ChainUrdf(N, summary->kinematics, options.robot_name);
+
+  // The residual on every row with the identified kinematics: the normal equations and then
+  // the residual block by block of rows (a long log's whole design would not fit in memory).
+  const RigidBodyChain chain = RigidBodyChain::FromUrdfString(summary->urdf);
+  constexpr Eigen::Index kBlock = 1000;
+  auto block_rows = [&](Eigen::Index begin, Matrix* A, Vector* y) {
+    const Eigen::Index n = std::min(kBlock, X.rows() - begin);
+    *A = Design(chain, X.middleRows(begin, n), search->scale, columns);
+    *y = StackScaled(Y.middleRows(begin, n), search->scale);
+  };
+  Matrix A;
+  Vector y;
+  Matrix G;
+  Vector g;
+  for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
+    block_rows(begin, &A, &y);
+    if (begin == 0) {
+      G = A.transpose() * A;
+      g = A.transpose() * y;
+    } else {
+      G.noalias() += A.transpose() * A;
+      g.noalias() += A.transpose() * y;
+    }
+  }
+  const Vector theta = SolveNormal(G, g);
+  Matrix residual(X.rows(), N);  // row by row, in the torques' units
+  for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
+    block_rows(begin, &A, &y);
+    const Vector r = y - A * theta;
+    for (Eigen::Index k = 0; k < r.size(); ++k) {
+      residual(begin + k / N, k % N) = r[k] * search->scale[k % N];
+    }
+  }
+  summary->residual_rms =
+      (residual.colwise().squaredNorm() / static_cast<double>(X.rows())).cwiseSqrt().transpose();
+  // The residual's white noise, within the log's trajectories when it has the time.
+  const std::vector<int> segments =
+      X.cols() == 3 * N + 1 ? SegmentStarts(X.col(3 * N)) : std::vector<int>{0};
+  summary->noise.resize(N);
+  for (int j = 0; j < N; ++j) summary->noise[j] = NoiseFromDifferences(residual.col(j), segments);
+}
+
 }  // namespace
 
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMatrixRef& Y,
@@ -293,11 +387,11 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   if (!(options.friction_width > 0.0) || !std::isfinite(options.friction_width) ||
       options.search_rows < 2 || options.starts < 1 || options.max_iterations < 1 ||
       options.kept_starts < 1 || options.screen_rows < 2 || options.screen_iterations < 1 ||
-      options.max_rounds < 1 || options.num_threads < 1) {
+      options.max_rounds < 1 || !(options.misfit_ratio > 0.0) || options.num_threads < 1) {
     throw std::invalid_argument(
         "IdentifyChain: options out of range (friction_width > 0, search_rows >= 2, starts >= 1, "
         "kept_starts >= 1, screen_rows >= 2, screen_iterations >= 1, "
-        "max_iterations >= 1, max_rounds >= 1, num_threads >= 1)");
+        "max_iterations >= 1, max_rounds >= 1, misfit_ratio > 0, num_threads >= 1)");
   }
   if (options.initial_kinematics.size() != 0 &&
       (options.initial_kinematics.size() != NumChainKinematicParameters(N) ||
@@ -370,8 +464,10 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   search.scale = summary.torque_rms;
 
   // Rounds of starts: every random start of a round a few iterations on few rows (screening),
-  // its kept_starts of least cost to the end on search_rows rows; another round while fewer
-  // than two kept starts have reached the best cost.
+  // its kept_starts of least cost to the end on search_rows rows. Another round while fewer
+  // than two kept starts have reached the best cost, or while the best chain, finished (length
+  // moves, refinement, the residual on every row), leaves more than misfit_ratio times the
+  // white noise of its residual on some joint.
   std::mt19937_64 rng(options.seed);
   auto run = [&](std::vector<Vector>* starts, int iterations, std::vector<double>* costs) {
     const int workers =
@@ -384,6 +480,8 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   };
   const bool screening = options.kept_starts < options.starts;
   double best = std::numeric_limits<double>::infinity();
+  Vector best_kinematics;
+  int finished_start = -2;  // the start whose chain was last finished (none yet)
   for (int round = 0; round < options.max_rounds; ++round) {
     std::vector<Vector> drawn;
     for (int s = 0; s < options.starts; ++s) drawn.push_back(RandomStart(N, &rng));
@@ -420,7 +518,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
       if (costs[i] < best) {
         best = costs[i];
         summary.best_start = index[i];
-        summary.kinematics = drawn[i];
+        best_kinematics = drawn[i];
       }
     }
     summary.rounds = round + 1;
@@ -428,81 +526,21 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     for (double c : summary.start_costs) {
       summary.starts_at_best += c <= 1.01 * best + 1e-12 ? 1 : 0;  // noise-free logs: best ~ 0
     }
-    if (summary.starts_at_best >= 2) break;
-  }
-  if (!std::isfinite(best)) {
-    throw std::runtime_error("IdentifyChain: no start gave a chain whose torques could be fitted");
-  }
-  // Moves out of a local minimum: each length of the best chain set to 0 in turn (most arms
-  // have intersecting or coplanar axes, which a search from a random start can miss) and the
-  // search run again from there; a move that lowers the cost by 1% is kept.
-  if (options.length_moves) {
-    double cost = best;
-    const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
-    for (Eigen::Index i = 0; i < summary.kinematics.size(); ++i) {
-      if (!layout[static_cast<size_t>(i)].is_length() || std::abs(summary.kinematics[i]) < 0.02) {
-        continue;
+    const bool last = round + 1 == options.max_rounds;
+    if (!std::isfinite(best)) {
+      if (last) {
+        throw std::runtime_error(
+            "IdentifyChain: no start gave a chain whose torques could be fitted");
       }
-      Vector moved = summary.kinematics;
-      moved[i] = 0.0;
-      const double c = Minimise(search, options.max_iterations, &moved);
-      if (c < 0.99 * cost) {
-        cost = c;
-        summary.kinematics = moved;
-        ++summary.moves_kept;
-      }
+      continue;
     }
-    summary.moved_cost = cost;
-  }
-  // The best start refined on more rows: the search rows' noise moves the minimum a little.
-  if (options.refine_rows > options.search_rows && X.rows() > options.search_rows) {
-    SetRows(X, Y, options.refine_rows, &search);
-    Vector refined = summary.kinematics;
-    summary.refined_cost = Minimise(search, options.max_iterations, &refined);
-    if (std::isfinite(summary.refined_cost)) summary.kinematics = refined;
-  }
-  Determination(search, &summary);
-  summary.urdf = ChainUrdf(N, summary.kinematics, options.robot_name);
-
-  // The residual on every row with the identified kinematics: the normal equations and then
-  // the residual block by block of rows (a long log's whole design would not fit in memory).
-  const RigidBodyChain chain = RigidBodyChain::FromUrdfString(summary.urdf);
-  constexpr Eigen::Index kBlock = 1000;
-  auto block_rows = [&](Eigen::Index begin, Matrix* A, Vector* y) {
-    const Eigen::Index n = std::min(kBlock, X.rows() - begin);
-    *A = Design(chain, X.middleRows(begin, n), search.scale, columns);
-    *y = StackScaled(Y.middleRows(begin, n), search.scale);
-  };
-  Matrix A;
-  Vector y;
-  Matrix G;
-  Vector g;
-  for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
-    block_rows(begin, &A, &y);
-    if (begin == 0) {
-      G = A.transpose() * A;
-      g = A.transpose() * y;
-    } else {
-      G.noalias() += A.transpose() * A;
-      g.noalias() += A.transpose() * y;
+    if (summary.starts_at_best < 2 && !last) continue;
+    if (summary.best_start != finished_start) {
+      Finish(X, Y, options, columns, best, best_kinematics, &search, &summary);
+      finished_start = summary.best_start;
     }
+    if (last || !Misfit(summary, options.misfit_ratio)) break;
   }
-  const Vector theta = SolveNormal(G, g);
-  Matrix residual(X.rows(), N);  // row by row, in the torques' units
-  for (Eigen::Index begin = 0; begin < X.rows(); begin += kBlock) {
-    block_rows(begin, &A, &y);
-    const Vector r = y - A * theta;
-    for (Eigen::Index k = 0; k < r.size(); ++k) {
-      residual(begin + k / N, k % N) = r[k] * search.scale[k % N];
-    }
-  }
-  summary.residual_rms =
-      (residual.colwise().squaredNorm() / static_cast<double>(X.rows())).cwiseSqrt().transpose();
-  // The residual's white noise, within the log's trajectories when it has the time.
-  const std::vector<int> segments =
-      X.cols() == 3 * N + 1 ? SegmentStarts(X.col(3 * N)) : std::vector<int>{0};
-  summary.noise.resize(N);
-  for (int j = 0; j < N; ++j) summary.noise[j] = NoiseFromDifferences(residual.col(j), segments);
   return summary;
 }
 

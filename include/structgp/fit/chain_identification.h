@@ -68,9 +68,13 @@ struct ChainIdentificationOptions {
   /// Levenberg-Marquardt iterations per start (>= 1).
   int max_iterations = 100;
   /// Rounds of starts at most (>= 1): while fewer than two kept starts have reached the best
-  /// cost (within 1%), another `starts` random starts are drawn and screened, and their
-  /// kept_starts searched to the end.
+  /// cost (within 1%), or while the best chain, finished (length moves, refinement), leaves
+  /// more than misfit_ratio (> 0; infinity: never) times the white noise of its residual on
+  /// some joint (ChainIdentificationSummary::noise), another `starts` random starts are drawn
+  /// and screened, and their kept_starts searched to the end. On a log that no chain explains
+  /// (a hydraulic arm's, one with effects not given) every round runs.
   int max_rounds = 3;
+  double misfit_ratio = 1.5;
   /// Starts searched at once (>= 1).
   int num_threads = 1;
   /// Name of the robot in the URDF.
@@ -107,7 +111,8 @@ struct ChainIdentificationSummary {
   Vector noise;
   /// Kept starts whose cost is within 1% of the best one's (the same minimum found again).
   int starts_at_best = 0;
-  /// Rounds of starts drawn (1 when two kept starts of the first reached the best).
+  /// Rounds of starts drawn (1 when two kept starts of the first reached the best and its chain
+  /// explains the log to misfit_ratio times the noise).
   int rounds = 0;
   /// What the log determines, per kinematic parameter (ChainKinematicNames), at the identified
   /// chain on the last rows searched: moved alone by 0.1 (m or rad), the linear parameters
