@@ -58,7 +58,8 @@ class IdentifyCommand : public Command {
         ->capture_default_str();
     cmd->add_option("--rounds", options_.max_rounds,
                     "Rounds of --starts starts at most: another round is drawn while fewer than "
-                    "two kept starts have reached the least cost")
+                    "two kept starts have reached the least cost, or while the best chain leaves "
+                    "more than 1.5 times its residual's white noise on a joint")
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     cmd->add_option("--seed", options_.seed, "Seed of the random starts")->capture_default_str();
