@@ -890,14 +890,17 @@ void BindDiagnosis(py::module_& m) {
   m.def(
       "diagnose_loop",
       [](const py::object& model_object, const py::object& X, const py::object& Y,
-         const py::object& t, const py::object& train, int rounds) {
+         const py::object& t, const py::object& train, int rounds, bool reidentify, int threads) {
         const Model& model = model_object.cast<const Model&>();
         const std::shared_ptr<const RobotModel> held = model.shared("diagnose_loop");
+        if (threads < 1) throw std::invalid_argument("threads must be >= 1");
         const Matrix states = AsMatrix(X, "X"), torques = AsMatrix(Y, "Y");
         const Vector times = AsVector(t, "t");
         const RobotData training = TrainingData(train);
         DiagnosisLoopOptions options;
         options.max_rounds = rounds;
+        options.reidentify_chain = reidentify;
+        options.chain.num_threads = threads;
         std::optional<RobotModel> improved;
         DiagnosisLoopSummary summary;
         {
@@ -913,14 +916,18 @@ void BindDiagnosis(py::module_& m) {
       },
       py::arg("model"), py::arg("X"), py::arg("Y"), py::arg("t") = py::none(), py::kw_only(),
       py::arg("train"), py::arg("rounds") = DiagnosisLoopOptions().max_rounds,
+      py::arg("reidentify") = DiagnosisLoopOptions().reidentify_chain, py::arg("threads") = 1,
       "The diagnosis loop, as `structgp diagnose --rounds`: diagnoses the model on X, Y (and t) "
       "with its training data train=(X, Y[, t]), adds every suggestion, refits on the training "
       "data with the fit's defaults (a lagk model from its own hyper-parameters, at its sigma) "
       "and diagnoses again, up to `rounds` diagnoses or until one "
-      "suggests nothing. Returns (model, loop): the last refitted Model (the given one when "
+      "suggests nothing. An rbd model on a URDF that identify_chain wrote has its chain "
+      "identified again before each refit, with the added effects beside it (from where it was, "
+      "and identify_chain's default starts on `threads` threads; reidentify=False: refit on the "
+      "chain as it is). Returns (model, loop): the last refitted Model (the given one when "
       "nothing was added) and the loop as a dict (termination, model, rounds with each one's "
-      "added effects, refit and findings). Raises ValueError for bad input, structgp.Error when "
-      "a diagnosis fails.");
+      "added effects, identification or None, refit and findings). Raises ValueError for bad "
+      "input, structgp.Error when a diagnosis fails.");
 }
 
 // ---- online learner --------------------------------------------------------------------------

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -138,6 +139,39 @@ TEST(ChainUrdf, RefusesAWrongSizeOrANonFiniteParameter) {
   EXPECT_THROW(ChainUrdf(3, Vector::Zero(8), "a<b"), std::invalid_argument);
   EXPECT_EQ(NumChainKinematicParameters(1), 1);
   EXPECT_NO_THROW(RigidBodyChain::FromUrdfString(ChainUrdf(1, Vector::Constant(1, 0.4))));
+}
+
+// ChainKinematicsOfUrdf reads back exactly the numbers ChainUrdf wrote, and recognises no other
+// document: one edited anywhere, or a URDF of the simulator's arms.
+TEST(ChainUrdf, KinematicsReadBackFromItsOwnUrdfAndNoOther) {
+  for (int N : {1, 2, 3, 7}) {
+    SCOPED_TRACE("N = " + std::to_string(N));
+    std::mt19937_64 rng(static_cast<std::uint64_t>(10 + N));
+    std::uniform_real_distribution<double> u(-2.0, 2.0);
+    Vector k(NumChainKinematicParameters(N));
+    for (Eigen::Index i = 0; i < k.size(); ++i) k[i] = u(rng) / 3.0;  // not short decimals
+    const std::string urdf = ChainUrdf(N, k, "arm-1.b");
+    const std::optional<Vector> back = ChainKinematicsOfUrdf(urdf);
+    ASSERT_TRUE(back.has_value());
+    ASSERT_EQ(back->size(), k.size());
+    for (Eigen::Index i = 0; i < k.size(); ++i) EXPECT_EQ((*back)[i], k[i]) << i;
+    // Renamed, it is the same chain; edited (a mass, a joint origin, the comment's numbers, a
+    // line added, cut short), another.
+    EXPECT_TRUE(ChainKinematicsOfUrdf(ChainUrdf(N, k, "other")));
+    auto edited = [&](const std::string& from, const std::string& to) {
+      std::string e = urdf;
+      const size_t at = e.find(from);
+      EXPECT_NE(at, std::string::npos) << from;
+      return at == std::string::npos ? e : e.replace(at, from.size(), to);
+    };
+    EXPECT_FALSE(ChainKinematicsOfUrdf(edited("<mass value=\"1\"/>", "<mass value=\"2\"/>")));
+    EXPECT_FALSE(ChainKinematicsOfUrdf(edited("<origin xyz=\"", "<origin xyz=\"1")));
+    EXPECT_FALSE(ChainKinematicsOfUrdf(edited("joint1 ", "joint1 1")));
+    EXPECT_FALSE(ChainKinematicsOfUrdf(urdf + "\n"));
+    EXPECT_FALSE(ChainKinematicsOfUrdf(urdf.substr(0, urdf.size() / 2)));
+  }
+  EXPECT_FALSE(ChainKinematicsOfUrdf(""));
+  EXPECT_FALSE(ChainKinematicsOfUrdf(sim::ToUrdf(sim::ThreeLinkArm())));
 }
 
 struct Log {

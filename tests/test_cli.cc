@@ -1231,6 +1231,71 @@ TEST(CliUrdf, IdentifyWritesAUrdfWhoseRbdModelPredictsAsTheRobotsOwn) {
   EXPECT_EQ(with_summary["cost_change"].size(), 8u);
 }
 
+// The diagnosis loop on rbd over a URDF that identify wrote: the chain is identified again with
+// the added effects (--out-urdf writes it, --out's model holds it); the one-shot diagnosis says
+// to identify again; --out-urdf is refused where no chain would be identified again.
+TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
+  TempDir dir;
+  const std::string demo = dir.File("demo");
+  ASSERT_EQ(RunCli(dir, {"demo", "--effect", "cogging", "--joint", "2", "--out", demo, "--quiet"})
+                .code,
+            0);
+  const std::string train = demo + "/train.csv", test = demo + "/test.csv";
+  const std::string urdf = dir.File("robot.urdf"), model = dir.File("rbd.json");
+  ASSERT_EQ(RunCli(dir, {"identify", "--data", train, "--out", urdf, "--starts", "6",
+                         "--kept-starts", "2", "--rounds", "1", "--threads", "2", "--quiet"})
+                .code,
+            0);
+  const Result fit = RunCli(dir, {"fit", "--data", train, "--model", "rbd+fri", "--urdf", urdf,
+                                  "--out", model, "--quiet"});
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  const Result once = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train", train,
+                                   "--json", dir.File("findings.json")});
+  ASSERT_EQ(once.code, 0) << once.err;
+  EXPECT_TRUE(Contains(once.out, "cogging@2")) << once.out;
+  EXPECT_TRUE(Contains(once.out, "structgp identify --data " + train + " --effects 'cogging@2"))
+      << once.out;
+
+  const std::string again = dir.File("again.urdf"), loop = dir.File("loop.json");
+  const Result rounds = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train",
+                                     train, "--rounds", "1", "--out", dir.File("improved.json"),
+                                     "--out-urdf", again, "--json", loop});
+  ASSERT_EQ(rounds.code, 0) << rounds.err;
+  EXPECT_TRUE(Contains(rounds.out, "chain identified again with them")) << rounds.out;
+  const Json j = Json::parse(ReadFile(loop));
+  ASSERT_TRUE(j["rounds"][0]["identification"].is_object()) << j.dump(2);
+  const std::string again_urdf = ReadFile(again);
+  EXPECT_NE(again_urdf, ReadFile(urdf));
+  EXPECT_TRUE(Contains(again_urdf, "identified from joint torques")) << again_urdf;
+  // The improved model carries the chain identified again.
+  const Json improved = Json::parse(ReadFile(dir.File("improved.json")));
+  EXPECT_TRUE(Contains(improved.dump(), Json(again_urdf).dump().substr(1, 200)));
+
+  // --out-urdf where no chain is identified again: exit 2, nothing written.
+  const Result kept = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train", train,
+                                   "--rounds", "1", "--out", dir.File("kept.json"), "--out-urdf",
+                                   dir.File("kept.urdf"), "--no-reidentify", "--json",
+                                   dir.File("kept_loop.json")});
+  EXPECT_EQ(kept.code, 2);
+  EXPECT_TRUE(Contains(kept.err, "--no-reidentify")) << kept.err;
+  const std::string pol = dir.File("pol.json");
+  ASSERT_EQ(RunCli(dir, {"fit", "--data", train, "--model", "pol", "--out", pol, "--quiet"}).code,
+            0);
+  const Result not_identified = RunCli(
+      dir, {"diagnose", "--model", pol, "--data", test, "--train", train, "--rounds", "1",
+            "--out", dir.File("p.json"), "--out-urdf", dir.File("p.urdf"), "--json",
+            dir.File("p_loop.json")});
+  EXPECT_EQ(not_identified.code, 2);
+  EXPECT_TRUE(Contains(not_identified.err, "no chain to identify again")) << not_identified.err;
+  const Result alone = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--out-urdf",
+                                    dir.File("a.urdf"), "--json", dir.File("a.json")});
+  EXPECT_EQ(alone.code, 2);
+  EXPECT_TRUE(Contains(alone.err, "--out-urdf goes with --rounds")) << alone.err;
+  for (const char* f : {"kept.urdf", "kept.json", "p.urdf", "p.json", "a.urdf", "a.json"}) {
+    EXPECT_FALSE(std::ifstream(dir.File(f)).good()) << f;
+  }
+}
+
 // With --urdf and a kinematics-free model the demo says the model knows nothing of the robot.
 TEST(CliUrdf, DemoSaysWhatTheStartingModelKnows) {
   TempDir dir;

@@ -60,3 +60,36 @@ def test_identify_chain_takes_effects_and_their_time(demo):
         structgp.identify_chain(train.X, train.Y, train.t[:10], starts=2)
     with pytest.raises(ValueError, match="names joint 3"):
         structgp.identify_chain(train.X, train.Y, effects="offset@3", starts=2)
+
+
+def test_diagnose_loop_identifies_an_identified_chain_again(cli, tmp_path):
+    # A cogging ripple on joint 2 the first identification is not told of: the loop names it and
+    # identifies the chain again with it; with reidentify=False the chain stays.
+    run(cli, "demo", "--effect", "cogging", "--joint", 2, "--out", tmp_path / "demo", "--quiet")
+    train = structgp.read_robot_csv(str(tmp_path / "demo" / "train.csv"))
+    test = structgp.read_robot_csv(str(tmp_path / "demo" / "test.csv"))
+    found = structgp.identify_chain(train.X, train.Y, starts=4, rounds=1, threads=2)
+    path = tmp_path / "robot.urdf"
+    path.write_text(found["urdf"])
+    model = structgp.Model("rbd+fri", urdf=str(path)).fit(train.X, train.Y, train.t)
+    improved, loop = structgp.diagnose_loop(model, test.X, test.Y, test.t,
+                                            train=(train.X, train.Y, train.t), rounds=1,
+                                            threads=2)
+    first = loop["rounds"][0]
+    assert "cogging@2" in first["added"]
+    identification = first["identification"]
+    assert identification is not None and identification["seconds"] > 0
+    assert len(identification["joints"]) == 2
+    assert identification["cost"] < min(found["start_costs"])
+    kept, loop_kept = structgp.diagnose_loop(model, test.X, test.Y, test.t,
+                                             train=(train.X, train.Y, train.t), rounds=1,
+                                             reidentify=False)
+    assert loop_kept["rounds"][0]["identification"] is None
+    assert loop_kept["rounds"][0]["added"] == first["added"]
+    # The chain identified again predicts the fast log's joint 2 better.
+    def rms(m):
+        return np.sqrt(np.mean((m.predict(test.X, test.t) - test.Y)[:, 1] ** 2))
+    assert rms(improved) < rms(kept)
+    with pytest.raises(ValueError, match="threads"):
+        structgp.diagnose_loop(model, test.X, test.Y, test.t, train=(train.X, train.Y, train.t),
+                               threads=0)

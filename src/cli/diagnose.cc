@@ -19,6 +19,12 @@ namespace {
 // Largest --significance: beyond it, a "significant" suggestion is a coin toss.
 constexpr double kMaxSignificance = 0.5;
 
+// rbd on a URDF that 'structgp identify' wrote, unchanged (the loop identifies it again).
+bool IdentifiedChain(const RobotModel& model) {
+  const RigidBodyChain* chain = model.options().rigid_body.get();
+  return chain != nullptr && ChainKinematicsOfUrdf(chain->urdf()).has_value();
+}
+
 class DiagnoseCommand : public Command {
  public:
   CLI::App* Register(CLI::App* app) override {
@@ -79,6 +85,14 @@ class DiagnoseCommand : public Command {
     cmd->add_option("--out", out_,
                     "With --rounds: the model with every added effect, refitted (the model as "
                     "given when nothing is added)");
+    cmd->add_flag("--no-reidentify", no_reidentify_,
+                  "With --rounds, rbd on a URDF that 'structgp identify' wrote: refit on that "
+                  "chain as it is (by default the chain is identified again from --train with "
+                  "the added effects beside it before each refit, so that a torque the first "
+                  "identification did not know no longer bends its kinematics)");
+    cmd->add_option("--out-urdf", out_urdf_,
+                    "With --rounds, when the chain was identified again: the last one, as a URDF "
+                    "(--out's model file holds it too)");
     cmd->add_option("--nystrom", options_.nystrom_features,
                     "Function-space models (rbf, rbfs, pol from 4 joints): Nystrom features of "
                     "the model's kernel the candidates are scored against")
@@ -109,9 +123,19 @@ class DiagnoseCommand : public Command {
                        "model on the training data and writes it to --out");
     }
     if (loop) CheckOutputPath("--out", out_);
+    if (!out_urdf_.empty()) {
+      if (!loop) throw UsageError("--out-urdf goes with --rounds, --train and --out");
+      CheckOutputPath("--out-urdf", out_urdf_);
+    }
     FromString(autocorrelation_, &options_.autocorrelation);  // checked by the flag
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     const RobotModel model = LoadModelFile(model_, load_);
+    if (!out_urdf_.empty() && (no_reidentify_ || !IdentifiedChain(model))) {
+      throw UsageError("--out-urdf " + out_urdf_ + ": " +
+                       (no_reidentify_ ? std::string("--no-reidentify keeps the chain as it is")
+                                       : model_ + " is not rbd on a URDF 'structgp identify' "
+                                                  "wrote: there is no chain to identify again"));
+    }
     const RobotData data = ReadData(data_, model.num_joints());
     const Matrix X = ModelInputs(model, data);  // also refuses a log without a time it needs
     RobotData train;
@@ -156,6 +180,18 @@ class DiagnoseCommand : public Command {
     std::fputs(DiagnosisSummary(diagnosis, model.spec(), options_).c_str(), text_out);
     WriteOutputs(outputs);
     PrintWritten(text_out, outputs);
+    if (!diagnosis.suggestions.empty() && IdentifiedChain(model)) {
+      std::string effects = ToString(model.spec().effects);
+      for (const Suggestion& s : diagnosis.suggestions) {
+        effects += (effects.empty() ? "" : ",") + s.spec;
+      }
+      std::fprintf(text_out,
+                   "the model's chain was identified from torques ('structgp identify'): identify "
+                   "it again with these effects before the refit (or run the loop: --train, "
+                   "--rounds, --out):\n  structgp identify --data %s --effects '%s' --out "
+                   "robot.urdf\n",
+                   train_.empty() ? "TRAIN.csv" : train_.c_str(), effects.c_str());
+    }
     return kExitOk;
   }
 
@@ -179,6 +215,8 @@ class DiagnoseCommand : public Command {
     DiagnosisLoopOptions loop;
     loop.max_rounds = rounds_;
     loop.diagnosis = options_;
+    loop.reidentify_chain = !no_reidentify_;
+    loop.chain.num_threads = MachineThreads();
     std::optional<RobotModel> improved;
     DiagnosisLoopSummary summary;
     try {
@@ -193,6 +231,14 @@ class DiagnoseCommand : public Command {
     const RobotModel& result = improved ? *improved : model;
     std::vector<OutputFile> outputs = {{"--json", json_, ToJson(summary)}};
     if (!out_.empty()) AddModelFile(&outputs, "--out", out_, result);
+    const ChainIdentificationSummary* identified = nullptr;
+    for (const DiagnosisRound& r : summary.rounds) {
+      if (r.identification) identified = &*r.identification;
+    }
+    if (!out_urdf_.empty()) {  // the chain as given when nothing was added
+      outputs.push_back({"--out-urdf", out_urdf_,
+                         identified ? identified->urdf : model.options().rigid_body->urdf()});
+    }
     const Diagnosis& first = summary.rounds.front().diagnosis;
     if (!report_.empty()) {
       outputs.push_back({"--report", report_,
@@ -213,7 +259,8 @@ class DiagnoseCommand : public Command {
   }
 
   int rounds_ = 1;
-  std::string out_;
+  bool no_reidentify_ = false;
+  std::string out_, out_urdf_;
   std::string model_, data_, json_, report_, train_;
   std::string autocorrelation_ = ToString(DiagnosisOptions().autocorrelation);
   LoadOptions load_;

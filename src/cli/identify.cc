@@ -113,37 +113,9 @@ class IdentifyCommand : public Command {
     progress.Line("done");
 
     const std::vector<std::string> names = ChainKinematicNames(N);
-    nlohmann::json doc;
-    doc["data"] = data_;
-    doc["num_samples"] = data.size();
-    doc["friction"] = options_.friction;
-    doc["effects"] = ToString(options_.effects);
-    doc["kinematics"] = nlohmann::json::object();
-    for (size_t k = 0; k < names.size(); ++k) {
-      doc["kinematics"][names[k]] = s.kinematics[static_cast<Eigen::Index>(k)];
-    }
-    doc["starts"] = options_.starts;
-    doc["rounds"] = s.rounds;
-    // Starts numbered from 1, round after round.
-    doc["kept_starts"] = nlohmann::json::array();
-    for (int k : s.starts) doc["kept_starts"].push_back(k + 1);
-    doc["start_costs"] = s.start_costs;
-    doc["best_start"] = s.best_start + 1;
-    doc["starts_at_best"] = s.starts_at_best;
-    if (std::isfinite(s.moved_cost)) doc["moved_cost"] = s.moved_cost;
-    doc["moves_kept"] = s.moves_kept;
-    if (std::isfinite(s.refined_cost)) doc["refined_cost"] = s.refined_cost;
-    doc["undetermined"] = nlohmann::json::array();
-    for (int k : s.undetermined) doc["undetermined"].push_back(names[static_cast<size_t>(k)]);
-    doc["cost_change"] = nlohmann::json::object();
-    doc["faster_change"] = nlohmann::json::object();
-    for (size_t k = 0; k < names.size(); ++k) {
-      const double cost = s.cost_change[static_cast<Eigen::Index>(k)];
-      const double faster = s.faster_change[static_cast<Eigen::Index>(k)];
-      if (std::isfinite(cost)) doc["cost_change"][names[k]] = cost;
-      if (std::isfinite(faster)) doc["faster_change"][names[k]] = faster;
-    }
-    doc["joints"] = nlohmann::json::array();
+    // The library's JSON of the search, after the data it ran on.
+    nlohmann::ordered_json doc = {{"data", data_}, {"num_samples", data.size()}};
+    doc.update(nlohmann::ordered_json::parse(ToJson(s, options_)));
 
     std::fprintf(text_out, "data   %s: %d samples, %d joints\n", data_.c_str(), data.size(), N);
     const int kept = static_cast<int>(s.starts.size());
@@ -175,19 +147,15 @@ class IdentifyCommand : public Command {
     std::vector<std::vector<std::string>> rows = {
         {"joint", "torque RMS", "residual RMS", "residual / torque", "noise", "residual / noise"}};
     // A residual well above the white noise in it: a smooth misfit the chain leaves.
-    constexpr double kMisfit = 1.5;
+    const double misfit_ratio = options_.misfit_ratio;
     std::string misfit;
     for (int j = 0; j < N; ++j) {
       const double ratio = s.residual_rms[j] / s.noise[j];
-      doc["joints"].push_back({{"joint", j + 1},
-                               {"torque_rms", s.torque_rms[j]},
-                               {"residual_rms", s.residual_rms[j]},
-                               {"noise", s.noise[j]}});
       rows.push_back({std::to_string(j + 1), Format("%.4g", s.torque_rms[j]),
                       Format("%.4g", s.residual_rms[j]),
                       Percent(s.residual_rms[j] / s.torque_rms[j]), Format("%.4g", s.noise[j]),
                       Format("%.3g", ratio)});
-      if (!(ratio <= kMisfit)) misfit += (misfit.empty() ? "" : ", ") + std::to_string(j + 1);
+      if (!(ratio <= misfit_ratio)) misfit += (misfit.empty() ? "" : ", ") + std::to_string(j + 1);
     }
     std::fputs(Table(rows).c_str(), text_out);
     std::string kinematics;
@@ -219,7 +187,7 @@ class IdentifyCommand : public Command {
                    "(try --rounds %d, or another --seed) or the log holds what no chain makes "
                    "(fit rbd+fri on this URDF, diagnose it, and identify again with the "
                    "--effects it names)\n",
-                   kMisfit, misfit.find(',') == std::string::npos ? "" : "s", misfit.c_str(),
+                   misfit_ratio, misfit.find(',') == std::string::npos ? "" : "s", misfit.c_str(),
                    2 * options_.max_rounds);
     }
     if (s.starts_at_best < 2 && kept > 1) {

@@ -1,6 +1,10 @@
 #include "structgp/diagnose/diagnosis_loop.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -8,8 +12,27 @@
 #include <nlohmann/json.hpp>
 
 #include "structgp/internal/text.h"
+#include "structgp/rigid_body/dh_chain.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// The identification's cost at its end: refined, else after the length moves, else the best
+// start's.
+double FinalCost(const ChainIdentificationSummary& s) {
+  if (std::isfinite(s.refined_cost)) return s.refined_cost;
+  if (std::isfinite(s.moved_cost)) return s.moved_cost;
+  double best = std::numeric_limits<double>::infinity();
+  for (double c : s.start_costs) best = std::min(best, c);
+  return best;
+}
+
+}  // namespace
 
 bool DiagnosisLoopOptions::IsValid(std::string* error) const {
   std::string why;
@@ -54,6 +77,13 @@ std::string DiagnosisLoopSummary::BriefReport() const {
       continue;
     }
     text += "add " + ToString(r.added);
+    if (r.identification) {
+      const ChainIdentificationSummary& id = *r.identification;
+      text += internal::Format(
+          "; chain identified again with them in %.1f s (cost %.4g, %d of %d kept starts at it)",
+          r.identification_seconds, FinalCost(id), id.starts_at_best,
+          static_cast<int>(id.starts.size()));
+    }
     if (r.refit) {
       text += internal::Format("; refitted in %.1f s", r.refit->total_seconds);
       if (!r.refit->IsUsable()) text += " (not usable: " + r.refit->message + ")";
@@ -78,6 +108,17 @@ std::string ToJson(const DiagnosisLoopSummary& summary) {
     Json round;
     round["model"] = r.model;
     round["added"] = r.added.empty() ? std::string() : ToString(r.added);
+    if (r.identification) {
+      Json id = {{"seconds", r.identification_seconds}, {"cost", FinalCost(*r.identification)}};
+      // The identification's own JSON (ChainIdentificationSummary), less the options' echo.
+      ChainIdentificationOptions echo;
+      Json full = Json::parse(ToJson(*r.identification, echo));
+      for (const char* key : {"friction", "effects", "starts"}) full.erase(key);
+      id.update(full);
+      round["identification"] = std::move(id);
+    } else {
+      round["identification"] = nullptr;
+    }
     if (r.refit) {
       round["refit"] = {{"usable", r.refit->IsUsable()},
                         {"message", r.refit->message},
@@ -116,8 +157,7 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
   auto finish = [&](DiagnosisLoopTermination termination, std::string message) {
     summary.termination = termination;
     summary.message = std::move(message);
-    summary.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    summary.seconds = Seconds(start);
     if (improved != nullptr && refitted) *improved = std::move(*refitted);
     return summary;
   };
@@ -146,7 +186,38 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
     ModelSpec spec = summary.spec;
     spec.effects.insert(spec.effects.end(), r.added.begin(), r.added.end());
     FitOptions round_fit = fit_options;
+    round_fit.model.rigid_body = current.options().rigid_body;
     if (options.refit_from_model) StartFromModel(current, &round_fit);
+    // A chain IdentifyChain found is found again with the effects beside it.
+    const std::shared_ptr<const RigidBodyChain>& chain = current.options().rigid_body;
+    const std::optional<Vector> kinematics =
+        options.reidentify_chain && chain ? ChainKinematicsOfUrdf(chain->urdf()) : std::nullopt;
+    if (kinematics) {
+      ChainIdentificationOptions o = options.chain;
+      o.effects = spec.effects;
+      o.friction_width = current.options().friction_width;
+      o.initial_kinematics = *kinematics;
+      o.robot_name = chain->robot_name();
+      Matrix X = train_states;
+      if (train_t.size() != 0) {  // for the effects that read the time
+        X.conservativeResize(Eigen::NoChange, X.cols() + 1);
+        X.col(X.cols() - 1) = train_t;
+      }
+      const auto identify_start = std::chrono::steady_clock::now();
+      try {
+        r.identification = IdentifyChain(X, train_torques, o);
+      } catch (const std::runtime_error& e) {
+        summary.rounds.push_back(std::move(r));
+        return finish(DiagnosisLoopTermination::kRefitFailed,
+                      internal::Format("round %d: identifying the chain again with %s: %s", round,
+                                       ToString(spec.effects).c_str(), e.what()));
+      }
+      r.identification_seconds = Seconds(identify_start);
+      UrdfOptions urdf;
+      urdf.gravity = chain->gravity();
+      round_fit.model.rigid_body = std::make_shared<const RigidBodyChain>(
+          RigidBodyChain::FromUrdfString(r.identification->urdf, urdf, chain->source()));
+    }
     FittedModel fit = FitModel(spec, train_states, train_torques, train_t, round_fit);
     r.refit = fit.summary;
     summary.rounds.push_back(std::move(r));

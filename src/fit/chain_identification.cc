@@ -10,6 +10,7 @@
 
 #include <Eigen/Cholesky>
 #include <ceres/ceres.h>
+#include <nlohmann/json.hpp>
 
 #include "structgp/core/noise_level.h"
 #include "structgp/core/row_subset.h"
@@ -542,6 +543,47 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     if (last || !Misfit(summary, options.misfit_ratio)) break;
   }
   return summary;
+}
+
+std::string ToJson(const ChainIdentificationSummary& s,
+                   const ChainIdentificationOptions& options) {
+  using Json = nlohmann::ordered_json;
+  const int N = static_cast<int>(s.torque_rms.size());
+  const std::vector<std::string> names = ChainKinematicNames(std::max(N, 1));
+  auto by_name = [&](const Vector& values) {
+    Json j = Json::object();
+    for (size_t k = 0; k < names.size() && static_cast<Eigen::Index>(k) < values.size(); ++k) {
+      const double v = values[static_cast<Eigen::Index>(k)];
+      if (std::isfinite(v)) j[names[k]] = v;
+    }
+    return j;
+  };
+  Json doc;
+  doc["friction"] = options.friction;
+  doc["effects"] = ToString(options.effects);
+  doc["starts"] = options.starts;
+  doc["rounds"] = s.rounds;
+  doc["kinematics"] = by_name(s.kinematics);
+  doc["kept_starts"] = Json::array();
+  for (int k : s.starts) doc["kept_starts"].push_back(k + 1);
+  doc["start_costs"] = s.start_costs;
+  doc["best_start"] = s.best_start + 1;
+  doc["starts_at_best"] = s.starts_at_best;
+  if (std::isfinite(s.moved_cost)) doc["moved_cost"] = s.moved_cost;
+  doc["moves_kept"] = s.moves_kept;
+  if (std::isfinite(s.refined_cost)) doc["refined_cost"] = s.refined_cost;
+  doc["undetermined"] = Json::array();
+  for (int k : s.undetermined) doc["undetermined"].push_back(names[static_cast<size_t>(k)]);
+  doc["cost_change"] = by_name(s.cost_change);
+  doc["faster_change"] = by_name(s.faster_change);
+  doc["joints"] = Json::array();
+  for (int j = 0; j < N; ++j) {
+    doc["joints"].push_back({{"joint", j + 1},
+                             {"torque_rms", s.torque_rms[j]},
+                             {"residual_rms", s.residual_rms[j]},
+                             {"noise", s.noise[j]}});
+  }
+  return doc.dump(2) + "\n";
 }
 
 }  // namespace structgp

@@ -1,6 +1,7 @@
 #include "structgp/rigid_body/dh_chain.h"
 
 #include <cctype>
+#include <locale>
 #include <sstream>
 #include <stdexcept>
 
@@ -10,6 +11,9 @@
 
 namespace structgp {
 namespace {
+
+// The comment's legend above the DH numbers of each joint (ChainKinematicsOfUrdf reads them).
+constexpr char kDhLegend[] = "modified Denavit-Hartenberg, joint i: alpha a theta d\n";
 
 // Numbers that read back to the same double.
 std::string Num(double value) { return internal::ShortestDecimal(value); }
@@ -93,7 +97,7 @@ std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
   std::ostringstream os;
   os << "<?xml version=\"1.0\"?>\n"
      << "<!-- A serial chain identified from joint torques by structgp (structgp identify): its\n"
-     << "     kinematics, modified Denavit-Hartenberg, joint i: alpha a theta d\n";
+     << "     kinematics, " << kDhLegend;
   for (int i = 0; i < N; ++i) {
     const Dh& j = dh[static_cast<size_t>(i)];
     os << "       joint" << i + 1 << " " << Num(j.alpha) << " " << Num(j.a) << " " << Num(j.theta)
@@ -124,6 +128,41 @@ std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
   }
   os << "</robot>\n";
   return os.str();
+}
+
+std::optional<Vector> ChainKinematicsOfUrdf(const std::string& urdf) {
+  const size_t legend = urdf.find(kDhLegend);
+  const size_t name_at = urdf.find("<robot name=\"");
+  if (legend == std::string::npos || name_at == std::string::npos) return std::nullopt;
+  const size_t name_begin = name_at + std::string("<robot name=\"").size();
+  const size_t name_end = urdf.find('"', name_begin);
+  if (name_end == std::string::npos) return std::nullopt;
+  const std::string name = urdf.substr(name_begin, name_end - name_begin);
+  // The comment's lines "jointK alpha a theta d", K = 1, 2, ...
+  std::istringstream lines(urdf.substr(legend + sizeof(kDhLegend) - 1));
+  lines.imbue(std::locale::classic());
+  std::vector<Dh> dh;
+  std::string label;
+  while (lines >> label && label == "joint" + std::to_string(dh.size() + 1)) {
+    Dh j;
+    if (!(lines >> j.alpha >> j.a >> j.theta >> j.d)) return std::nullopt;
+    dh.push_back(j);
+  }
+  const int N = static_cast<int>(dh.size());
+  if (N < 1) return std::nullopt;
+  const std::vector<ChainKinematicParameter> layout = ChainKinematicLayout(N);
+  Vector k(static_cast<Eigen::Index>(layout.size()));
+  for (size_t i = 0; i < layout.size(); ++i) {
+    const Dh& j = dh[static_cast<size_t>(layout[i].joint)];
+    const double field[] = {j.alpha, j.a, j.theta, j.d};
+    k[static_cast<Eigen::Index>(i)] = field[static_cast<int>(layout[i].field)];
+  }
+  try {
+    if (ChainUrdf(N, k, name) != urdf) return std::nullopt;
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;  // a name or number ChainUrdf would not write
+  }
+  return k;
 }
 
 }  // namespace structgp

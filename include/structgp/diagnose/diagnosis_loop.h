@@ -27,6 +27,7 @@
 
 #include "structgp/core/types.h"
 #include "structgp/diagnose/diagnosis.h"
+#include "structgp/fit/chain_identification.h"
 #include "structgp/fit/fit_model.h"
 #include "structgp/model/model_spec.h"
 #include "structgp/model/robot_model.h"
@@ -50,6 +51,19 @@ struct DiagnosisLoopOptions {
   /// joint: a refit from scratch may take another sigma and change every joint.) Other models
   /// refit from their data-derived starts either way.
   bool refit_from_model = true;
+  /// rbd models on a chain that IdentifyChain found (`structgp identify`'s URDF, as written:
+  /// ChainKinematicsOfUrdf): before each refit the chain is identified again from the training
+  /// data with every effect the refitted model will have in its least squares, from where it
+  /// was (ChainIdentificationOptions::initial_kinematics) and from `chain`'s random starts.
+  /// A torque the first identification did not know (a cogging ripple, a friction) bends the
+  /// kinematics towards explaining it; refitting only the inertial parameters on that chain
+  /// keeps the bend (docs/diagnosis.md, "Without a URDF"). false: refit on the chain as it is.
+  /// Other models, and rbd on any other URDF, are refitted on their own chain either way.
+  bool reidentify_chain = true;
+  /// The identification's options; its effects, friction_width, initial_kinematics and
+  /// robot_name are set by the loop from the model (the training data's t is passed as X's
+  /// last column when given, for effects that read it).
+  ChainIdentificationOptions chain;
   /// True when usable; otherwise false with the reason in *error (may be null).
   bool IsValid(std::string* error) const;
 };
@@ -68,6 +82,10 @@ struct DiagnosisRound {
   Diagnosis diagnosis;
   std::vector<EffectSpec> added;    // the suggestions as effects (ParseEffectList of each spec)
   std::optional<FitSummary> refit;  // the refit with them on the training data, when any
+  /// The chain identified again before the refit (DiagnosisLoopOptions::reidentify_chain), and
+  /// the seconds it took; the refit is on identification->urdf.
+  std::optional<ChainIdentificationSummary> identification;
+  double identification_seconds = 0.0;
 };
 
 struct DiagnosisLoopSummary {
@@ -89,10 +107,13 @@ struct DiagnosisLoopSummary {
 /// every round with the training data (DiagnosisOptions::training_*); t must be given for both
 /// or neither. *improved (may be null) receives the last usable refit, and stays empty when
 /// the first diagnosis suggests nothing. Throws std::invalid_argument on invalid options, bad
-/// sizes or an unfitted model (as Diagnose and FitModel do); numerical trouble is the
-/// summary's termination.
+/// sizes or an unfitted model (as Diagnose and FitModel do), or chain options IdentifyChain
+/// refuses; numerical trouble is the summary's termination (an identification that finds no
+/// usable chain: kRefitFailed).
 /// The loop as JSON: {"termination", "message", "seconds", "model" (the last usable model's
-/// label), "rounds": [{"model", "added" (effect list text, "" when none), "refit": {"usable",
+/// label), "rounds": [{"model", "added" (effect list text, "" when none), "identification":
+/// {"seconds", "rounds", "starts_at_best", "kept_starts", "cost", "kinematics" (by name),
+/// "residual_rms", "noise" (per joint), "undetermined" (names)} or null, "refit": {"usable",
 /// "message", "seconds"} or null, "findings": the round's diagnosis as ToJson writes it}]}.
 std::string ToJson(const DiagnosisLoopSummary& summary);
 

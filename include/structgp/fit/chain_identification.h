@@ -143,6 +143,15 @@ struct ChainIdentificationSummary {
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                          const ChainIdentificationOptions& options = {});
 
+/// The summary as JSON, with the options it was found with: {"friction", "effects" (effect
+/// list text), "starts", "rounds", "kinematics": {name: value}, "kept_starts" (numbered from
+/// 1, round after round; 0 is initial_kinematics), "start_costs", "best_start",
+/// "starts_at_best", "moved_cost" and "refined_cost" (when finite), "moves_kept",
+/// "undetermined" (names), "cost_change" and "faster_change" ({name: value}, the finite ones),
+/// "joints": [{"joint", "torque_rms", "residual_rms", "noise"}]}.
+std::string ToJson(const ChainIdentificationSummary& summary,
+                   const ChainIdentificationOptions& options);
+
 }  // namespace structgp
 
 #endif  // STRUCTGP_FIT_CHAIN_IDENTIFICATION_H_

@@ -14,6 +14,7 @@
 /// in rad, lengths in m. The same torques can come from several chains (with two parallel axes
 /// only the sum of the offsets along them shows, for example).
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,12 @@ std::vector<std::string> ChainKinematicNames(int num_joints);
 /// characters than letters, digits, '_', '-' and '.'.
 std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
                       const std::string& robot_name = "identified_chain");
+
+/// The kinematic parameters of a URDF that ChainUrdf wrote, as it wrote it (its comment holds
+/// the DH numbers of each joint; the document written again from them must be this one, byte
+/// for byte), so that a chain found by IdentifyChain can be searched again from where it was;
+/// nullopt for any other URDF: a manufacturer's, or one edited since.
+std::optional<Vector> ChainKinematicsOfUrdf(const std::string& urdf);
 
 /// Throws std::invalid_argument, naming `where`, for a robot name that a URDF's XML cannot hold
 /// as written (other characters than letters, digits, '_', '-' and '.').
