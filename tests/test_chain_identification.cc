@@ -13,6 +13,7 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -172,6 +173,35 @@ TEST(ChainUrdf, KinematicsReadBackFromItsOwnUrdfAndNoOther) {
   }
   EXPECT_FALSE(ChainKinematicsOfUrdf(""));
   EXPECT_FALSE(ChainKinematicsOfUrdf(sim::ToUrdf(sim::ThreeLinkArm())));
+
+  // A number written otherwise in its last digits (another libm) is the same document; one
+  // changed in its sixth is not.
+  const Vector k = Vector::LinSpaced(8, -0.7, 0.9) / 3.0;
+  const std::string urdf = ChainUrdf(3, k);
+  const size_t origin = urdf.find("<origin xyz=\"") + 13;
+  const size_t end = urdf.find(' ', origin);
+  const double x = std::stod(urdf.substr(origin, end - origin));
+  auto with_x = [&](double value) {
+    std::ostringstream text;
+    text.precision(17);
+    text << value;
+    std::string e = urdf;
+    return e.replace(origin, end - origin, text.str());
+  };
+  EXPECT_TRUE(ChainKinematicsOfUrdf(with_x(x + 1e-13 * std::max(1.0, std::abs(x)))));
+  EXPECT_FALSE(ChainKinematicsOfUrdf(with_x(x + 1e-6)));
+
+  // Read from a chain: whole and under the default gravity only.
+  const RigidBodyChain whole = RigidBodyChain::FromUrdfString(urdf);
+  ASSERT_TRUE(ChainKinematicsOf(whole));
+  EXPECT_EQ(*ChainKinematicsOf(whole), *ChainKinematicsOfUrdf(urdf));
+  UrdfOptions part;
+  part.tip = "link2";
+  EXPECT_FALSE(ChainKinematicsOf(RigidBodyChain::FromUrdfString(urdf, part)));
+  UrdfOptions tilted;
+  tilted.gravity = Eigen::Vector3d(0.0, -9.81, 0.0);
+  EXPECT_FALSE(ChainKinematicsOf(RigidBodyChain::FromUrdfString(urdf, tilted)));
+  EXPECT_FALSE(ChainKinematicsOf(sim::ToRigidBodyChain(sim::ThreeLinkArm())));
 }
 
 struct Log {

@@ -9,6 +9,8 @@
 #include "structgp/diagnose/diagnosis_loop.h"
 #include "structgp/io/data_error.h"
 #include "structgp/io/model_file.h"
+#include "structgp/rigid_body/dh_chain.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
 #include "structgp/report/report.h"
 #include "structgp/report/report_data.h"
 
@@ -19,10 +21,10 @@ namespace {
 // Largest --significance: beyond it, a "significant" suggestion is a coin toss.
 constexpr double kMaxSignificance = 0.5;
 
-// rbd on a URDF that 'structgp identify' wrote, unchanged (the loop identifies it again).
+// A model on a URDF that 'structgp identify' wrote, unchanged (the loop identifies it again).
 bool IdentifiedChain(const RobotModel& model) {
   const RigidBodyChain* chain = model.options().rigid_body.get();
-  return chain != nullptr && ChainKinematicsOfUrdf(chain->urdf()).has_value();
+  return chain != nullptr && ChainKinematicsOf(*chain).has_value();
 }
 
 class DiagnoseCommand : public Command {
@@ -89,7 +91,8 @@ class DiagnoseCommand : public Command {
                   "With --rounds, rbd on a URDF that 'structgp identify' wrote: refit on that "
                   "chain as it is (by default the chain is identified again from --train with "
                   "the added effects beside it before each refit, so that a torque the first "
-                  "identification did not know no longer bends its kinematics)");
+                  "identification did not know no longer bends its kinematics; its starts run "
+                  "on --threads threads, by default on the machine's)");
     cmd->add_option("--out-urdf", out_urdf_,
                     "With --rounds, when the chain was identified again: the last one, as a URDF "
                     "(--out's model file holds it too)");
@@ -111,6 +114,7 @@ class DiagnoseCommand : public Command {
         "  structgp diagnose --model model.json --data test.csv --train train.csv --rounds 3 "
         "--out improved.json --json loop.json");
     AddLoadThreadsFlag(cmd, &load_);
+    command_ = cmd;
     return cmd;
   }
 
@@ -126,6 +130,9 @@ class DiagnoseCommand : public Command {
     if (!out_urdf_.empty()) {
       if (!loop) throw UsageError("--out-urdf goes with --rounds, --train and --out");
       CheckOutputPath("--out-urdf", out_urdf_);
+    }
+    if (no_reidentify_ && !loop) {
+      throw UsageError("--no-reidentify goes with --rounds, --train and --out (the loop's refits)");
     }
     FromString(autocorrelation_, &options_.autocorrelation);  // checked by the flag
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
@@ -216,7 +223,8 @@ class DiagnoseCommand : public Command {
     loop.max_rounds = rounds_;
     loop.diagnosis = options_;
     loop.reidentify_chain = !no_reidentify_;
-    loop.chain.num_threads = MachineThreads();
+    // The identification's starts on --threads threads when given, else on the machine's.
+    loop.chain.num_threads = command_->count("--threads") > 0 ? load_.num_threads : MachineThreads();
     std::optional<RobotModel> improved;
     DiagnosisLoopSummary summary;
     try {
@@ -231,13 +239,8 @@ class DiagnoseCommand : public Command {
     const RobotModel& result = improved ? *improved : model;
     std::vector<OutputFile> outputs = {{"--json", json_, ToJson(summary)}};
     if (!out_.empty()) AddModelFile(&outputs, "--out", out_, result);
-    const ChainIdentificationSummary* identified = nullptr;
-    for (const DiagnosisRound& r : summary.rounds) {
-      if (r.identification) identified = &*r.identification;
-    }
-    if (!out_urdf_.empty()) {  // the chain as given when nothing was added
-      outputs.push_back({"--out-urdf", out_urdf_,
-                         identified ? identified->urdf : model.options().rigid_body->urdf()});
+    if (!out_urdf_.empty()) {  // the chain of --out's model (as given when nothing was added)
+      outputs.push_back({"--out-urdf", out_urdf_, result.options().rigid_body->urdf()});
     }
     const Diagnosis& first = summary.rounds.front().diagnosis;
     if (!report_.empty()) {
@@ -258,6 +261,7 @@ class DiagnoseCommand : public Command {
     return kExitOk;
   }
 
+  CLI::App* command_ = nullptr;
   int rounds_ = 1;
   bool no_reidentify_ = false;
   std::string out_, out_urdf_;

@@ -191,9 +191,10 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
     // A chain IdentifyChain found is found again with the effects beside it.
     const std::shared_ptr<const RigidBodyChain>& chain = current.options().rigid_body;
     const std::optional<Vector> kinematics =
-        options.reidentify_chain && chain ? ChainKinematicsOfUrdf(chain->urdf()) : std::nullopt;
+        options.reidentify_chain && chain ? ChainKinematicsOf(*chain) : std::nullopt;
     if (kinematics) {
       ChainIdentificationOptions o = options.chain;
+      o.friction = spec.friction;
       o.effects = spec.effects;
       o.friction_width = current.options().friction_width;
       o.initial_kinematics = *kinematics;
@@ -204,19 +205,17 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
         X.col(X.cols() - 1) = train_t;
       }
       const auto identify_start = std::chrono::steady_clock::now();
-      try {
+      try {  // options it refuses, too few rows for the effects' bases, no usable chain
         r.identification = IdentifyChain(X, train_torques, o);
-      } catch (const std::runtime_error& e) {
+      } catch (const std::exception& e) {
         summary.rounds.push_back(std::move(r));
         return finish(DiagnosisLoopTermination::kRefitFailed,
                       internal::Format("round %d: identifying the chain again with %s: %s", round,
                                        ToString(spec.effects).c_str(), e.what()));
       }
       r.identification_seconds = Seconds(identify_start);
-      UrdfOptions urdf;
-      urdf.gravity = chain->gravity();
       round_fit.model.rigid_body = std::make_shared<const RigidBodyChain>(
-          RigidBodyChain::FromUrdfString(r.identification->urdf, urdf, chain->source()));
+          RigidBodyChain::FromUrdfString(r.identification->urdf, {}, chain->source()));
     }
     FittedModel fit = FitModel(spec, train_states, train_torques, train_t, round_fit);
     r.refit = fit.summary;

@@ -1,6 +1,8 @@
 #include "structgp/rigid_body/dh_chain.h"
 
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <locale>
 #include <sstream>
 #include <stdexcept>
@@ -8,6 +10,7 @@
 #include <kdl/frames.hpp>
 
 #include "structgp/internal/text.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
 namespace {
@@ -22,6 +25,40 @@ std::string Num(double value) { return internal::ShortestDecimal(value); }
 struct Dh {
   double alpha = 0.0, a = 0.0, theta = 0.0, d = 0.0;
 };
+
+// The same document, numbers to 1e-9 relative (another build's libm may round the origins'
+// angles otherwise in the last digit), the rest character for character.
+bool SameDocument(const std::string& a, const std::string& b) {
+  auto tokens = [](const std::string& text) {
+    std::vector<std::string> t;
+    std::string current;
+    for (char c : text) {
+      if (std::isspace(static_cast<unsigned char>(c)) || c == '"') {
+        if (!current.empty()) t.push_back(std::move(current));
+        current.clear();
+        t.push_back(std::string(1, c));
+      } else {
+        current += c;
+      }
+    }
+    if (!current.empty()) t.push_back(std::move(current));
+    return t;
+  };
+  auto number = [](const std::string& token, double* value) {
+    std::istringstream in(token);
+    in.imbue(std::locale::classic());
+    return static_cast<bool>(in >> *value) && in.peek() == std::char_traits<char>::eof();
+  };
+  const std::vector<std::string> ta = tokens(a), tb = tokens(b);
+  if (ta.size() != tb.size()) return false;
+  for (size_t i = 0; i < ta.size(); ++i) {
+    if (ta[i] == tb[i]) continue;
+    double x = 0.0, y = 0.0;
+    if (!number(ta[i], &x) || !number(tb[i], &y)) return false;
+    if (!(std::abs(x - y) <= 1e-9 * std::max(1.0, std::abs(x)))) return false;
+  }
+  return true;
+}
 
 std::vector<Dh> DhOf(int N, const ConstVectorRef& k) {
   std::vector<Dh> dh(static_cast<size_t>(N));
@@ -158,9 +195,20 @@ std::optional<Vector> ChainKinematicsOfUrdf(const std::string& urdf) {
     k[static_cast<Eigen::Index>(i)] = field[static_cast<int>(layout[i].field)];
   }
   try {
-    if (ChainUrdf(N, k, name) != urdf) return std::nullopt;
+    if (!SameDocument(ChainUrdf(N, k, name), urdf)) return std::nullopt;
   } catch (const std::invalid_argument&) {
     return std::nullopt;  // a name or number ChainUrdf would not write
+  }
+  return k;
+}
+
+std::optional<Vector> ChainKinematicsOf(const RigidBodyChain& chain) {
+  std::optional<Vector> k = ChainKinematicsOfUrdf(chain.urdf());
+  const int N = chain.num_joints();
+  if (!k || k->size() != NumChainKinematicParameters(N) || chain.root() != "base" ||
+      chain.tip() != "link" + std::to_string(N) ||
+      chain.gravity() != UrdfOptions().gravity) {
+    return std::nullopt;
   }
   return k;
 }

@@ -51,17 +51,18 @@ struct DiagnosisLoopOptions {
   /// joint: a refit from scratch may take another sigma and change every joint.) Other models
   /// refit from their data-derived starts either way.
   bool refit_from_model = true;
-  /// rbd models on a chain that IdentifyChain found (`structgp identify`'s URDF, as written:
-  /// ChainKinematicsOfUrdf): before each refit the chain is identified again from the training
-  /// data with every effect the refitted model will have in its least squares, from where it
-  /// was (ChainIdentificationOptions::initial_kinematics) and from `chain`'s random starts.
-  /// A torque the first identification did not know (a cogging ripple, a friction) bends the
+  /// Models on a chain that IdentifyChain found (`structgp identify`'s URDF as written, read
+  /// whole: ChainKinematicsOf; rbd, and rbd+pol, rbd+rbf with it as their mean): before each
+  /// refit the chain is identified again from the training data with the friction and every
+  /// effect the refitted model will have in its least squares, from where it was
+  /// (ChainIdentificationOptions::initial_kinematics) and from `chain`'s random starts. A
+  /// torque the first identification did not know (a cogging ripple, a friction) bends the
   /// kinematics towards explaining it; refitting only the inertial parameters on that chain
   /// keeps the bend (docs/diagnosis.md, "Without a URDF"). false: refit on the chain as it is.
-  /// Other models, and rbd on any other URDF, are refitted on their own chain either way.
+  /// Models on any other URDF are refitted on their own chain either way.
   bool reidentify_chain = true;
-  /// The identification's options; its effects, friction_width, initial_kinematics and
-  /// robot_name are set by the loop from the model (the training data's t is passed as X's
+  /// The identification's options; its friction, effects, friction_width, initial_kinematics
+  /// and robot_name are set by the loop from the model (the training data's t is passed as X's
   /// last column when given, for effects that read it).
   ChainIdentificationOptions chain;
   /// True when usable; otherwise false with the reason in *error (may be null).
@@ -107,14 +108,17 @@ struct DiagnosisLoopSummary {
 /// every round with the training data (DiagnosisOptions::training_*); t must be given for both
 /// or neither. *improved (may be null) receives the last usable refit, and stays empty when
 /// the first diagnosis suggests nothing. Throws std::invalid_argument on invalid options, bad
-/// sizes or an unfitted model (as Diagnose and FitModel do), or chain options IdentifyChain
-/// refuses; numerical trouble is the summary's termination (an identification that finds no
-/// usable chain: kRefitFailed).
+/// sizes or an unfitted model (as Diagnose and FitModel do); numerical trouble is the summary's
+/// termination (an identification again that refuses its options or the data, or finds no
+/// usable chain: kRefitFailed, *improved the last usable refit).
 /// The loop as JSON: {"termination", "message", "seconds", "model" (the last usable model's
 /// label), "rounds": [{"model", "added" (effect list text, "" when none), "identification":
-/// {"seconds", "rounds", "starts_at_best", "kept_starts", "cost", "kinematics" (by name),
-/// "residual_rms", "noise" (per joint), "undetermined" (names)} or null, "refit": {"usable",
-/// "message", "seconds"} or null, "findings": the round's diagnosis as ToJson writes it}]}.
+/// {"seconds", "cost" (the final one), then the keys of ToJson(ChainIdentificationSummary)
+/// other than the options' echo: "rounds", "kinematics", "kept_starts", "start_costs",
+/// "best_start", "starts_at_best", "moved_cost", "moves_kept", "refined_cost",
+/// "undetermined", "cost_change", "faster_change", "joints" (each "joint", "torque_rms",
+/// "residual_rms", "noise")} or null, "refit": {"usable", "message", "seconds"} or null,
+/// "findings": the round's diagnosis as ToJson writes it}]}.
 std::string ToJson(const DiagnosisLoopSummary& summary);
 
 DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const RobotModel& model,

@@ -22,6 +22,8 @@
 
 namespace structgp {
 
+class RigidBodyChain;
+
 /// One kinematic parameter: which DH number of which joint it is.
 struct ChainKinematicParameter {
   enum class Field { kAlpha, kA, kTheta, kD };
@@ -49,10 +51,17 @@ std::string ChainUrdf(int num_joints, const ConstVectorRef& kinematics,
                       const std::string& robot_name = "identified_chain");
 
 /// The kinematic parameters of a URDF that ChainUrdf wrote, as it wrote it (its comment holds
-/// the DH numbers of each joint; the document written again from them must be this one, byte
-/// for byte), so that a chain found by IdentifyChain can be searched again from where it was;
-/// nullopt for any other URDF: a manufacturer's, or one edited since.
+/// the DH numbers of each joint; the document written again from them must be this one, its
+/// numbers to 1e-9 relative, the rest character for character), so that a chain found by
+/// IdentifyChain can be searched again from where it was; nullopt for any other URDF: a
+/// manufacturer's, or one edited since (a new robot name is no edit).
 std::optional<Vector> ChainKinematicsOfUrdf(const std::string& urdf);
+
+/// The same for a chain read from a URDF: its kinematic parameters when the URDF is one
+/// ChainUrdf wrote, read whole (all its joints, "base" to the last link) under the gravity
+/// IdentifyChain assumes (0, 0, -9.81 in the root frame); nullopt otherwise (a part of such a
+/// URDF, another gravity, any other URDF).
+std::optional<Vector> ChainKinematicsOf(const RigidBodyChain& chain);
 
 /// Throws std::invalid_argument, naming `where`, for a robot name that a URDF's XML cannot hold
 /// as written (other characters than letters, digits, '_', '-' and '.').
