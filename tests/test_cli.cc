@@ -1255,6 +1255,8 @@ TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
   EXPECT_TRUE(Contains(once.out, "cogging@2")) << once.out;
   EXPECT_TRUE(Contains(once.out, "structgp identify --data " + train + " --effects 'cogging@2"))
       << once.out;
+  EXPECT_TRUE(Contains(once.out, "--model rbd+fri --urdf ROBOT.urdf --effects 'cogging@2"))
+      << once.out;
 
   const std::string again = dir.File("again.urdf"), loop = dir.File("loop.json");
   const Result rounds = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train",

@@ -212,8 +212,12 @@ std::string DiagnosisSummary(const Diagnosis& d, const ModelSpec& spec,
   std::string text = DiagnosisReport(d, spec, options);
   if (d.suggestions.empty()) return text;
   const ModelSpec fixed = WithSuggestions(spec, d);
+  // Models on a chain need its URDF again (for one 'structgp identify' wrote, identified again
+  // with the effects: the diagnose command says so).
+  const bool chain = fixed.base == BaseModel::kRbd || fixed.rigid_body_features;
   return text + "to refit with every suggestion:\n  structgp fit --data TRAIN.csv --model " +
-         ToString(fixed) + " --effects '" + ToString(fixed.effects) + "' --out MODEL\n";
+         ToString(fixed) + (chain ? " --urdf ROBOT.urdf" : "") + " --effects '" +
+         ToString(fixed.effects) + "' --out MODEL\n";
 }
 
 std::vector<report::JointData> ReportJoints(
