@@ -31,6 +31,7 @@
 #include "structgp/sim/robot.h"
 #include "structgp/sim/trajectory.h"
 #include "structgp/sim/urdf.h"
+#include "ripple_log.h"
 
 namespace structgp {
 namespace {
@@ -333,74 +334,47 @@ TEST(IdentifyChain, ExplainsALightWristToTheNoiseAtItsOwnKinematics) {
   for (int j = 0; j < 6; ++j) EXPECT_LT(id.residual_rms[j], 1.1 * noise[j]) << "joint " << j + 1;
 }
 
-// The two-link arm (planar, vertical) with a cogging ripple on joint 2 of a tenth of its RMS
-// torque, viscous and Coulomb friction on both joints and 1% noise; t in the last column of X.
-struct RippleLog {
-  Matrix X, Y;
-  Vector noise;
-};
-RippleLog TwoLinkRippleLog(std::uint64_t seed) {
-  std::vector<sim::JointFriction> joints(2);
-  for (auto& j : joints) {
-    j.coulomb = 0.2;
-    j.viscous = 0.1;
-    j.smoothing_velocity = 0.01;
-  }
-  sim::SimulationOptions options;
-  options.friction = sim::FrictionModel(joints);
-  const sim::Dataset d =
-      sim::Simulate(sim::TwoLinkArm(), sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, seed), options);
-  RippleLog log;
-  log.Y = d.Y;
-  const Vector rms = (d.Y.colwise().squaredNorm() / d.Y.rows()).cwiseSqrt().transpose();
-  log.noise = 0.01 * rms;
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> normal;
-  for (Eigen::Index i = 0; i < log.Y.rows(); ++i) {
-    log.Y(i, 1) += 0.1 * rms[1] * std::sin(2.0 * M_PI * d.X(i, 1) / 0.3 + 0.4);
-    for (int j = 0; j < 2; ++j) log.Y(i, j) += log.noise[j] * normal(rng);
-  }
-  log.X.resize(d.X.rows(), d.X.cols() + 1);
-  log.X << d.X, d.t;
-  return log;
+// The slow log of tests/ripple_log.h along 20 via points in 30 s (path and noise from seed).
+testing::RippleLog TwoLinkRippleLog(std::uint64_t seed) {
+  return testing::TwoLinkRippleLog(sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, seed), seed);
 }
 
 TEST(IdentifyChain, AnEffectNoChainMakesIsExplainedWhenGivenAndNotOtherwise) {
-  const RippleLog log = TwoLinkRippleLog(3);
+  const testing::RippleLog log = TwoLinkRippleLog(3);
   ChainIdentificationOptions options;
   options.starts = 8;
   options.kept_starts = 3;
   options.max_rounds = 1;
-  const ChainIdentificationSummary without = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary without = IdentifyChain(log.XT(), log.Y, options);
   EXPECT_GT(without.residual_rms[1], 3.0 * log.noise[1]);  // the ripple is left over
   // ... and the summary says so: the residual's white noise is near the log's (the ripple's
   // own steps from row to row raise it a little), its RMS far above.
   EXPECT_NEAR(without.noise[1], log.noise[1], 0.25 * log.noise[1]);
   EXPECT_GT(without.residual_rms[1], 3.0 * without.noise[1]);
   options.effects = ParseEffectList("cogging@2:period=0.3");
-  const ChainIdentificationSummary with = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary with = IdentifyChain(log.XT(), log.Y, options);
   for (int j = 0; j < 2; ++j) {
     EXPECT_LT(with.residual_rms[j], 1.1 * log.noise[j]) << "joint " << j + 1;
     EXPECT_NEAR(with.noise[j], log.noise[j], 0.1 * log.noise[j]) << "joint " << j + 1;
   }
   // The ripple's period wrong by a third: the effect does not fit, and the residual stays.
   options.effects = ParseEffectList("cogging@2:period=0.4");
-  EXPECT_GT(IdentifyChain(log.X, log.Y, options).residual_rms[1], 3.0 * log.noise[1]);
+  EXPECT_GT(IdentifyChain(log.XT(), log.Y, options).residual_rms[1], 3.0 * log.noise[1]);
   // The time column is read only by effects that use it: the same chain without it.
   options.effects = ParseEffectList("cogging@2:period=0.3");
   const ChainIdentificationSummary no_time =
-      IdentifyChain(log.X.leftCols(6), log.Y, options);
+      IdentifyChain(log.X, log.Y, options);
   EXPECT_EQ(no_time.urdf, with.urdf);
   // An effect that reads the time (a drift of the Coulomb level on joint 1) is accepted with it.
   options.effects = ParseEffectList("cogging@2:period=0.3,drift@1");
-  const ChainIdentificationSummary drift = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary drift = IdentifyChain(log.XT(), log.Y, options);
   EXPECT_LT(drift.residual_rms[1], 1.1 * log.noise[1]);
 }
 
 // Rounds: one start a round, so that a second round is drawn whenever the first start alone is
 // at its own best; the rounds stop as soon as two kept starts reach the best cost.
 TEST(IdentifyChain, DrawsRoundsOfStartsUntilTwoReachTheBestCost) {
-  const RippleLog log = TwoLinkRippleLog(4);
+  const testing::RippleLog log = TwoLinkRippleLog(4);
   ChainIdentificationOptions options;
   options.starts = 1;
   options.kept_starts = 1;
@@ -408,7 +382,7 @@ TEST(IdentifyChain, DrawsRoundsOfStartsUntilTwoReachTheBestCost) {
   options.effects = ParseEffectList("cogging@2:period=0.3");
   options.length_moves = false;
   options.refine_rows = 0;
-  const ChainIdentificationSummary id = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary id = IdentifyChain(log.XT(), log.Y, options);
   ASSERT_GE(id.rounds, 2);
   ASSERT_EQ(static_cast<int>(id.starts.size()), id.rounds);
   for (int r = 0; r < id.rounds; ++r) EXPECT_EQ(id.starts[static_cast<size_t>(r)], r);
@@ -423,7 +397,7 @@ TEST(IdentifyChain, DrawsRoundsOfStartsUntilTwoReachTheBestCost) {
   }
   // The same first round as a run of one round: rounds only add starts.
   options.max_rounds = 1;
-  const ChainIdentificationSummary one = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary one = IdentifyChain(log.XT(), log.Y, options);
   EXPECT_EQ(one.rounds, 1);
   EXPECT_EQ(one.start_costs.front(), id.start_costs.front());
 }
@@ -431,18 +405,18 @@ TEST(IdentifyChain, DrawsRoundsOfStartsUntilTwoReachTheBestCost) {
 // A chain that leaves a smooth misfit (the ripple, not given as an effect) draws every round;
 // the same search with the misfit rule off stops when two starts agree.
 TEST(IdentifyChain, DrawsRoundsWhileTheChainLeavesMoreThanTheNoise) {
-  const RippleLog log = TwoLinkRippleLog(3);
+  const testing::RippleLog log = TwoLinkRippleLog(3);
   ChainIdentificationOptions options;
   options.starts = 4;
   options.kept_starts = 2;
   options.max_rounds = 2;
   options.length_moves = false;
-  const ChainIdentificationSummary id = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary id = IdentifyChain(log.XT(), log.Y, options);
   EXPECT_GT(id.residual_rms[1], options.misfit_ratio * id.noise[1]);
   EXPECT_EQ(id.rounds, 2);
   EXPECT_EQ(id.starts.size(), 4u);
   options.misfit_ratio = std::numeric_limits<double>::infinity();
-  const ChainIdentificationSummary agreed = IdentifyChain(log.X, log.Y, options);
+  const ChainIdentificationSummary agreed = IdentifyChain(log.XT(), log.Y, options);
   if (agreed.rounds == 1) EXPECT_GE(agreed.starts_at_best, 2);
   // The first round is the same search: its kept starts end at the same costs.
   EXPECT_EQ(agreed.start_costs[0], id.start_costs[0]);

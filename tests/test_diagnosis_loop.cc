@@ -8,7 +8,6 @@
 #include <cmath>
 #include <memory>
 #include <optional>
-#include <random>
 #include <stdexcept>
 #include <string>
 
@@ -17,10 +16,9 @@
 
 #include "structgp/rigid_body/dh_chain.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
-#include "structgp/sim/dataset.h"
-#include "structgp/sim/friction.h"
 #include "structgp/sim/hidden_effect.h"
 #include "structgp/sim/trajectory.h"
+#include "ripple_log.h"
 
 namespace structgp {
 namespace {
@@ -207,49 +205,16 @@ TEST(DiagnosisLoop, RefitsLagkFromTheModelsOwnHyperparameters) {
   EXPECT_NE(s.rounds[0].refit->method_description, s2.rounds[0].refit->method_description);
 }
 
-// The two-link arm with viscous and Coulomb friction on both joints and a cogging ripple on joint
-// 2 (a tenth of its RMS torque, period 0.3 rad), 1% noise.
-struct RippleLog {
-  Matrix X, Y;
-  Vector t, noise;
-  // X with t as its last column, as IdentifyChain takes it.
-  Matrix XT() const {
-    Matrix xt(X.rows(), X.cols() + 1);
-    xt << X, t;
-    return xt;
-  }
-};
-RippleLog TwoLinkRippleLog(const sim::Trajectory& trajectory, std::uint64_t seed) {
-  std::vector<sim::JointFriction> joints(2);
-  for (auto& j : joints) {
-    j.coulomb = 0.2;
-    j.viscous = 0.1;
-    j.smoothing_velocity = 0.01;
-  }
-  sim::SimulationOptions options;
-  options.friction = sim::FrictionModel(joints);
-  const sim::Dataset d = sim::Simulate(sim::TwoLinkArm(), trajectory, options);
-  RippleLog log{d.X, d.Y, d.t, Vector()};
-  const Vector rms = (d.Y.colwise().squaredNorm() / d.Y.rows()).cwiseSqrt().transpose();
-  log.noise = 0.01 * rms;
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> normal;
-  for (Eigen::Index i = 0; i < log.Y.rows(); ++i) {
-    log.Y(i, 1) += 0.1 * rms[1] * std::sin(2.0 * M_PI * d.X(i, 1) / 0.3 + 0.4);
-    for (int j = 0; j < 2; ++j) log.Y(i, j) += log.noise[j] * normal(rng);
-  }
-  return log;
-}
-
 // rbd+fri on a chain IdentifyChain found from a slow log whose ripple it was not told of: the
 // loop names the ripple, identifies the chain again with it beside the chain (what a user does by
 // hand with `structgp identify --effects`), and refits on that chain; the result predicts a fast
 // log of another path at least as well as the refit on the first chain. With reidentify_chain
 // off, and for a URDF IdentifyChain did not write, the chain stays.
 TEST(DiagnosisLoop, IdentifiesAChainFoundFromTheTorquesAgainWithTheAddedEffects) {
-  const RippleLog train = TwoLinkRippleLog(sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, 1), 1);
-  const RippleLog log = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 2), 2);
-  const RippleLog eval = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 3), 3);
+  using testing::TwoLinkRippleLog;
+  const testing::RippleLog train = TwoLinkRippleLog(sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, 1), 1);
+  const testing::RippleLog log = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 2), 2);
+  const testing::RippleLog eval = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 3), 3);
   ChainIdentificationOptions identify;
   identify.starts = 8;
   identify.kept_starts = 3;
