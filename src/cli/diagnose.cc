@@ -140,7 +140,7 @@ class DiagnoseCommand : public Command {
     if (!out_urdf_.empty() && (no_reidentify_ || !IdentifiedChain(model))) {
       throw UsageError("--out-urdf " + out_urdf_ + ": " +
                        (no_reidentify_ ? std::string("--no-reidentify keeps the chain as it is")
-                                       : model_ + " is not rbd on a URDF 'structgp identify' "
+                                       : model_ + " is not a model on a URDF 'structgp identify' "
                                                   "wrote: there is no chain to identify again"));
     }
     const RobotData data = ReadData(data_, model.num_joints());
