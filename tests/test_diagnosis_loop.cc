@@ -211,10 +211,11 @@ TEST(DiagnosisLoop, RefitsLagkFromTheModelsOwnHyperparameters) {
 // log of another path at least as well as the refit on the first chain. With reidentify_chain
 // off, and for a URDF IdentifyChain did not write, the chain stays.
 TEST(DiagnosisLoop, IdentifiesAChainFoundFromTheTorquesAgainWithTheAddedEffects) {
+  using testing::RippleLog;
   using testing::TwoLinkRippleLog;
-  const testing::RippleLog train = TwoLinkRippleLog(sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, 1), 1);
-  const testing::RippleLog log = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 2), 2);
-  const testing::RippleLog eval = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 3), 3);
+  const RippleLog train = TwoLinkRippleLog(sim::ViaPoints(2, 30.0, 0.01, 20, 1.0, 1.0, 1), 1);
+  const RippleLog log = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 2), 2);
+  const RippleLog eval = TwoLinkRippleLog(sim::ViaPoints(2, 8.0, 0.01, 8, 2.0, 1.0, 3), 3);
   ChainIdentificationOptions identify;
   identify.starts = 8;
   identify.kept_starts = 3;
@@ -237,7 +238,9 @@ TEST(DiagnosisLoop, IdentifiesAChainFoundFromTheTorquesAgainWithTheAddedEffects)
   ASSERT_TRUE(improved.has_value());
   const DiagnosisRound& r = s.rounds[0];
   bool cogging2 = false;
-  for (const EffectSpec& e : r.added) cogging2 |= e.name == "cogging" && e.joints == std::vector<int>{2};
+  for (const EffectSpec& e : r.added) {
+    cogging2 |= e.name == "cogging" && e.joints == std::vector<int>{2};
+  }
   EXPECT_TRUE(cogging2) << s.BriefReport();
   ASSERT_TRUE(r.identification.has_value()) << s.BriefReport();
   EXPECT_GT(r.identification_seconds, 0.0);
@@ -288,7 +291,8 @@ TEST(DiagnosisLoop, IdentifiesAChainFoundFromTheTorquesAgainWithTheAddedEffects)
   EXPECT_EQ(id.at("rounds"), r.identification->rounds);
   EXPECT_EQ(id.at("cost").get<double>(), r.identification->refined_cost);
   EXPECT_EQ(id.at("joints").size(), 2u);
-  EXPECT_TRUE(nlohmann::json::parse(ToJson(s_kept)).at("rounds").at(0).at("identification").is_null());
+  const nlohmann::json kept_json = nlohmann::json::parse(ToJson(s_kept));
+  EXPECT_TRUE(kept_json.at("rounds").at(0).at("identification").is_null());
   EXPECT_NE(s.BriefReport().find("chain identified again"), std::string::npos) << s.BriefReport();
 
   // A URDF IdentifyChain did not write (the same chain, its masses edited) is refitted as it is.

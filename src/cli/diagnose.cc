@@ -224,7 +224,8 @@ class DiagnoseCommand : public Command {
     loop.diagnosis = options_;
     loop.reidentify_chain = !no_reidentify_;
     // The identification's starts on --threads threads when given, else on the machine's.
-    loop.chain.num_threads = command_->count("--threads") > 0 ? load_.num_threads : MachineThreads();
+    loop.chain.num_threads =
+        command_->count("--threads") > 0 ? load_.num_threads : MachineThreads();
     std::optional<RobotModel> improved;
     DiagnosisLoopSummary summary;
     try {
