@@ -602,10 +602,8 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
     ChainIdentificationOptions o = g_chain;
     o.num_threads = g_threads;
     o.effects = effects;
-    Matrix X = logs.train.X;
-    X.conservativeResize(Eigen::NoChange, X.cols() + 1);
-    X.col(X.cols() - 1) = logs.train.t;
-    const ChainIdentificationSummary id = IdentifyChain(X, logs.train.Y, o);
+    const ChainIdentificationSummary id =
+        IdentifyChain(logs.train.X, logs.train.t, logs.train.Y, o);
     std::fprintf(stderr,
                  "%s %s chain%s%s: identified in %.0f s, %d round%s, %d of %d kept starts at the "
                  "best cost %.3g\n",

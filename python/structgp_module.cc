@@ -807,18 +807,8 @@ void BindDiagnosis(py::module_& m) {
       [](const py::object& X, const py::object& Y, const py::object& t, bool friction,
          const py::object& effects, int starts, int rounds, int rows, int refine_rows,
          std::uint64_t seed, int threads, const std::string& name) {
-        Matrix states = AsMatrix(X, "X");
-        const Matrix torques = AsMatrix(Y, "Y");
-        const Vector times = AsVector(t, "t");
-        if (times.size() > 0) {  // the time as the last input, for effects that use it
-          if (times.size() != states.rows()) {
-            throw std::invalid_argument("t: " + std::to_string(times.size()) +
-                                        " entries, expected one per row of X (" +
-                                        std::to_string(states.rows()) + ")");
-          }
-          states.conservativeResize(Eigen::NoChange, states.cols() + 1);
-          states.col(states.cols() - 1) = times;
-        }
+        const Matrix states = AsMatrix(X, "X"), torques = AsMatrix(Y, "Y");
+        const Vector times = AsVector(t, "t");  // for effects that use it
         ChainIdentificationOptions o;
         o.friction = friction;
         o.effects = EffectList(effects);
@@ -833,7 +823,7 @@ void BindDiagnosis(py::module_& m) {
         {
           py::gil_scoped_release release;
           try {
-            s = IdentifyChain(states, torques, o);
+            s = IdentifyChain(states, times, torques, o);
           } catch (const std::invalid_argument&) {
             throw;
           } catch (const std::runtime_error& e) {

@@ -438,6 +438,10 @@ TEST(IdentifyChain, RefusesBadInputNamingIt) {
             std::string::npos);
   EXPECT_NE(message([&] { IdentifyChain(X.topRows(10), Y); }).find("10 input rows and 40"),
             std::string::npos);
+  // The times apart: one per row.
+  EXPECT_NE(message([&] { IdentifyChain(X, Vector::LinSpaced(39, 0.0, 1.0), Y); })
+                .find("t has 39 entries, expected one per row of the states (40)"),
+            std::string::npos);
   Matrix bad = X;
   bad(3, 1) = std::nan("");
   EXPECT_NE(message([&] { IdentifyChain(bad, Y); }).find("non-finite"), std::string::npos);

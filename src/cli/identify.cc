@@ -103,13 +103,8 @@ class IdentifyCommand : public Command {
     progress.Line("searching the kinematics of " + std::to_string(N) + " joints from " +
                   std::to_string(options_.starts) + " starts (" +
                   std::to_string(options_.num_threads) + " at once)");
-    // With the time as the last input when the log has one (effects that use it read it).
-    Matrix X = data.X;
-    if (data.has_time()) {
-      X.conservativeResize(Eigen::NoChange, X.cols() + 1);
-      X.col(X.cols() - 1) = data.t;
-    }
-    const ChainIdentificationSummary s = IdentifyChain(X, data.Y, options_);
+    // With the time when the log has one (effects that use it read it).
+    const ChainIdentificationSummary s = IdentifyChain(data.X, data.t, data.Y, options_);
     progress.Line("done");
 
     const std::vector<std::string> names = ChainKinematicNames(N);

@@ -199,14 +199,9 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
       o.friction_width = current.options().friction_width;
       o.initial_kinematics = *kinematics;
       o.robot_name = chain->robot_name();
-      Matrix X = train_states;
-      if (train_t.size() != 0) {  // for the effects that read the time
-        X.conservativeResize(Eigen::NoChange, X.cols() + 1);
-        X.col(X.cols() - 1) = train_t;
-      }
       const auto identify_start = std::chrono::steady_clock::now();
       try {  // options it refuses, too few rows for the effects' bases, no usable chain
-        r.identification = IdentifyChain(X, train_torques, o);
+        r.identification = IdentifyChain(train_states, train_t, train_torques, o);
       } catch (const std::exception& e) {
         summary.rounds.push_back(std::move(r));
         return finish(DiagnosisLoopTermination::kRefitFailed,

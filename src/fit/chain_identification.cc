@@ -545,6 +545,20 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   return summary;
 }
 
+ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& states, const ConstVectorRef& t,
+                                         const ConstMatrixRef& Y,
+                                         const ChainIdentificationOptions& options) {
+  if (t.size() == 0) return IdentifyChain(states, Y, options);
+  if (t.size() != states.rows()) {
+    throw std::invalid_argument("IdentifyChain: t has " + std::to_string(t.size()) +
+                                " entries, expected one per row of the states (" +
+                                std::to_string(states.rows()) + ")");
+  }
+  Matrix X(states.rows(), states.cols() + 1);
+  X << states, t;
+  return IdentifyChain(X, Y, options);
+}
+
 std::string ToJson(const ChainIdentificationSummary& s,
                    const ChainIdentificationOptions& options) {
   using Json = nlohmann::ordered_json;

@@ -143,6 +143,12 @@ struct ChainIdentificationSummary {
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMatrixRef& Y,
                                          const ChainIdentificationOptions& options = {});
 
+/// The same with the times apart: X is states (3N columns) followed by t when t is not empty
+/// (one entry per row; std::invalid_argument otherwise), as a log holds them.
+ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& states, const ConstVectorRef& t,
+                                         const ConstMatrixRef& Y,
+                                         const ChainIdentificationOptions& options = {});
+
 /// The summary as JSON, with the options it was found with: {"friction", "effects" (effect
 /// list text), "starts", "rounds", "kinematics": {name: value}, "kept_starts" (numbered from
 /// 1, round after round; 0 is initial_kinematics), "start_costs", "best_start",
