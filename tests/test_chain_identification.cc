@@ -417,7 +417,9 @@ TEST(IdentifyChain, DrawsRoundsWhileTheChainLeavesMoreThanTheNoise) {
   EXPECT_EQ(id.starts.size(), 4u);
   options.misfit_ratio = std::numeric_limits<double>::infinity();
   const ChainIdentificationSummary agreed = IdentifyChain(log.XT(), log.Y, options);
-  if (agreed.rounds == 1) EXPECT_GE(agreed.starts_at_best, 2);
+  if (agreed.rounds == 1) {
+    EXPECT_GE(agreed.starts_at_best, 2);
+  }
   // The first round is the same search: its kept starts end at the same costs.
   EXPECT_EQ(agreed.start_costs[0], id.start_costs[0]);
   EXPECT_EQ(agreed.start_costs[1], id.start_costs[1]);
@@ -449,8 +451,12 @@ TEST(IdentifyChain, RefusesBadInputNamingIt) {
   EXPECT_NE(message([&] { IdentifyChain(X, Y); }).find("joint 2 is zero"), std::string::npos);
   Y.col(1).setOnes();
   ChainIdentificationOptions o;
-  o.starts = 0;
-  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("starts >= 1"), std::string::npos);
+  o.starts = -1;
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("starts >= 0"), std::string::npos);
+  o.starts = 0;  // a local search needs a start of its own
+  EXPECT_NE(message([&] { IdentifyChain(X, Y, o); }).find("starts = 0 (a local search) needs "
+                                                          "initial_kinematics"),
+            std::string::npos);
   // 20 rows of 2 joints: 40 torques for 28 linear parameters (with friction).
   EXPECT_NE(message([&] { IdentifyChain(X.topRows(20), Y.topRows(20)); })
                 .find("40 torques for 28 linear parameters: at least 28 rows"),

@@ -386,11 +386,11 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     throw std::invalid_argument("IdentifyChain: a non-finite entry in the data");
   }
   if (!(options.friction_width > 0.0) || !std::isfinite(options.friction_width) ||
-      options.search_rows < 2 || options.starts < 1 || options.max_iterations < 1 ||
+      options.search_rows < 2 || options.starts < 0 || options.max_iterations < 1 ||
       options.kept_starts < 1 || options.screen_rows < 2 || options.screen_iterations < 1 ||
       options.max_rounds < 1 || !(options.misfit_ratio > 0.0) || options.num_threads < 1) {
     throw std::invalid_argument(
-        "IdentifyChain: options out of range (friction_width > 0, search_rows >= 2, starts >= 1, "
+        "IdentifyChain: options out of range (friction_width > 0, search_rows >= 2, starts >= 0, "
         "kept_starts >= 1, screen_rows >= 2, screen_iterations >= 1, "
         "max_iterations >= 1, max_rounds >= 1, misfit_ratio > 0, num_threads >= 1)");
   }
@@ -401,6 +401,10 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
                                 std::to_string(options.initial_kinematics.size()) +
                                 " entries (finite), expected " +
                                 std::to_string(NumChainKinematicParameters(N)));
+  }
+  if (options.starts == 0 && options.initial_kinematics.size() == 0) {
+    throw std::invalid_argument(
+        "IdentifyChain: starts = 0 (a local search) needs initial_kinematics to start from");
   }
   CheckRobotName("IdentifyChain", options.robot_name);  // before the search, not after it
   // The columns beside the chain's: friction and the effects, each on its joints.
@@ -483,7 +487,9 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
   double best = std::numeric_limits<double>::infinity();
   Vector best_kinematics;
   int finished_start = -2;  // the start whose chain was last finished (none yet)
-  for (int round = 0; round < options.max_rounds; ++round) {
+  // Without random starts (a local search from initial_kinematics) one round is all there is.
+  const int max_rounds = options.starts == 0 ? 1 : options.max_rounds;
+  for (int round = 0; round < max_rounds; ++round) {
     std::vector<Vector> drawn;
     for (int s = 0; s < options.starts; ++s) drawn.push_back(RandomStart(N, &rng));
     std::vector<int> index(drawn.size());
@@ -527,7 +533,7 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
     for (double c : summary.start_costs) {
       summary.starts_at_best += c <= 1.01 * best + 1e-12 ? 1 : 0;  // noise-free logs: best ~ 0
     }
-    const bool last = round + 1 == options.max_rounds;
+    const bool last = round + 1 == max_rounds;
     if (!std::isfinite(best)) {
       if (last) {
         throw std::runtime_error(
@@ -557,6 +563,14 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& states, const Con
   Matrix X(states.rows(), states.cols() + 1);
   X << states, t;
   return IdentifyChain(X, Y, options);
+}
+
+double ChainIdentificationCost(const ChainIdentificationSummary& s) {
+  if (std::isfinite(s.refined_cost)) return s.refined_cost;
+  if (std::isfinite(s.moved_cost)) return s.moved_cost;
+  double best = std::numeric_limits<double>::infinity();
+  for (double c : s.start_costs) best = std::min(best, c);
+  return best;
 }
 
 std::string ToJson(const ChainIdentificationSummary& s,

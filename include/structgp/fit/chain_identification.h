@@ -49,7 +49,8 @@ struct ChainIdentificationOptions {
   /// Effects beside the chain, as `--effects` writes them (ParseEffectList): their bases in the
   /// least squares on their joints. An effect that uses the time needs X's trailing t column.
   std::vector<EffectSpec> effects;
-  /// Random starts (>= 1), and the generator's seed. Each is screened: screen_iterations
+  /// Random starts (>= 0; 0 with initial_kinematics: a local search from there alone, one
+  /// round), and the generator's seed. Each is screened: screen_iterations
   /// iterations on screen_rows evenly spaced rows; the kept_starts of least cost then go on to
   /// the end on search_rows rows (all of them when kept_starts >= starts: no screening).
   int starts = 64;
@@ -148,6 +149,11 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& states, const ConstVectorRef& t,
                                          const ConstMatrixRef& Y,
                                          const ChainIdentificationOptions& options = {});
+
+/// The identification's cost at its end: after the refinement, else after the length moves,
+/// else the best start's (ChainIdentificationSummary: each a mean squared residual over
+/// torques divided by their RMS).
+double ChainIdentificationCost(const ChainIdentificationSummary& summary);
 
 /// The summary as JSON, with the options it was found with: {"friction", "effects" (effect
 /// list text), "starts", "rounds", "kinematics": {name: value}, "kept_starts" (numbered from
