@@ -740,7 +740,8 @@ void BindDiagnosis(py::module_& m) {
       [](const Model& model, const py::object& X, const py::object& Y, const py::object& t,
          const py::object& report, int folds, double min_evidence,
          const std::vector<std::string>& candidates, double significance, const py::object& train,
-         const std::string& autocorrelation) {
+         const std::string& autocorrelation, bool reidentify, int threads) {
+        if (threads < 1) throw std::invalid_argument("threads must be >= 1");
         const std::shared_ptr<const RobotModel> held = model.shared("diagnose");
         const RobotModel& fitted = *held;
         RobotData data;
@@ -755,6 +756,8 @@ void BindDiagnosis(py::module_& m) {
         result.options.min_log_evidence_gain = min_evidence;
         result.options.candidates = candidates;
         result.options.significance = significance;
+        result.options.reidentify_chain = reidentify;
+        result.options.chain.num_threads = threads;
         if (!FromString(autocorrelation, &result.options.autocorrelation)) {
           throw py::value_error("autocorrelation: expected 'bartlett', 'prewhitening' or "
                                 "'none', got '" + autocorrelation + "'");
@@ -792,6 +795,7 @@ void BindDiagnosis(py::module_& m) {
       py::arg("candidates") = std::vector<std::string>(),
       py::arg("significance") = DiagnosisOptions().significance, py::arg("train") = py::none(),
       py::arg("autocorrelation") = std::string(ToString(DiagnosisOptions().autocorrelation)),
+      py::arg("reidentify") = DiagnosisOptions().reidentify_chain, py::arg("threads") = 1,
       "Diagnoses a fitted model on X, Y (and t, rows in time order), as `structgp diagnose`: "
       "per joint the residual and where it concentrates, the verdict (a missing effect, or "
       "motions the training data did not cover), and the effects the model misses, each scored "
@@ -800,6 +804,10 @@ void BindDiagnosis(py::module_& m) {
       "candidates are scored on it and the data together, and the findings say how far the data "
       "are from the training states. report=PATH also writes the HTML report. "
       "autocorrelation: 'bartlett', 'prewhitening' or 'none' (DiagnosisOptions). "
+      "An rbd model on a URDF that identify_chain wrote, with train: the chain is identified "
+      "again on train and the data together (a local search on `threads` threads), and when it "
+      "explains the data better the findings are against the model on it (to_json()['chain']; "
+      "reidentify=False keeps the chain). "
       "Raises ValueError for bad input, structgp.Error when the diagnosis fails.");
 
   m.def(
@@ -890,7 +898,9 @@ void BindDiagnosis(py::module_& m) {
         DiagnosisLoopOptions options;
         options.max_rounds = rounds;
         options.reidentify_chain = reidentify;
+        options.diagnosis.reidentify_chain = reidentify;
         options.chain.num_threads = threads;
+        options.diagnosis.chain.num_threads = threads;
         std::optional<RobotModel> improved;
         DiagnosisLoopSummary summary;
         {

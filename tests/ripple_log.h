@@ -18,8 +18,8 @@ namespace structgp {
 namespace testing {
 
 // The two-link arm (planar, vertical) along `trajectory`, with viscous and Coulomb friction on
-// both joints, a cogging ripple on joint 2 of a tenth of its RMS torque (period 0.3 rad) and
-// noise of 1% of each joint's RMS torque (drawn from noise_seed).
+// both joints, a cogging ripple on joint 2 of `ripple` times its RMS torque (period 0.3 rad)
+// and noise of 1% of each joint's RMS torque (drawn from noise_seed).
 struct RippleLog {
   Matrix X, Y;
   Vector t, noise;
@@ -31,7 +31,8 @@ struct RippleLog {
   }
 };
 
-inline RippleLog TwoLinkRippleLog(const sim::Trajectory& trajectory, std::uint64_t noise_seed) {
+inline RippleLog TwoLinkRippleLog(const sim::Trajectory& trajectory, std::uint64_t noise_seed,
+                                  double ripple = 0.1) {
   std::vector<sim::JointFriction> joints(2);
   for (auto& j : joints) {
     j.coulomb = 0.2;
@@ -47,7 +48,7 @@ inline RippleLog TwoLinkRippleLog(const sim::Trajectory& trajectory, std::uint64
   std::mt19937_64 rng(noise_seed);
   std::normal_distribution<double> normal;
   for (Eigen::Index i = 0; i < log.Y.rows(); ++i) {
-    log.Y(i, 1) += 0.1 * rms[1] * std::sin(2.0 * M_PI * d.X(i, 1) / 0.3 + 0.4);
+    log.Y(i, 1) += ripple * rms[1] * std::sin(2.0 * M_PI * d.X(i, 1) / 0.3 + 0.4);
     for (int j = 0; j < 2; ++j) log.Y(i, j) += log.noise[j] * normal(rng);
   }
   return log;

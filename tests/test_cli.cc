@@ -1231,9 +1231,10 @@ TEST(CliUrdf, IdentifyWritesAUrdfWhoseRbdModelPredictsAsTheRobotsOwn) {
   EXPECT_EQ(with_summary["cost_change"].size(), 8u);
 }
 
-// The diagnosis loop on rbd over a URDF that identify wrote: the chain is identified again with
-// the added effects (--out-urdf writes it, --out's model holds it); the one-shot diagnosis says
-// to identify again; --out-urdf is refused where no chain would be identified again.
+// rbd over a URDF that identify wrote: one diagnosis identifies the chain again on both logs
+// (--out-urdf writes it); the diagnosis loop identifies it again with the added effects
+// (--out-urdf writes it, --out's model holds it); --out-urdf is refused where no chain would be
+// identified again.
 TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
   TempDir dir;
   const std::string demo = dir.File("demo");
@@ -1249,14 +1250,32 @@ TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
   const Result fit = RunCli(dir, {"fit", "--data", train, "--model", "rbd+fri", "--urdf", urdf,
                                   "--out", model, "--quiet"});
   ASSERT_EQ(fit.code, 0) << fit.err;
+  // One diagnosis: the chain identified again on both logs (with the suggestions on the first
+  // chain beside it) explains the log better; the suggestions are against it, --out-urdf
+  // writes it.
+  const std::string both = dir.File("both.urdf");
   const Result once = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train", train,
-                                   "--json", dir.File("findings.json")});
+                                   "--json", dir.File("findings.json"), "--out-urdf", both,
+                                   "--threads", "2"});
   ASSERT_EQ(once.code, 0) << once.err;
   EXPECT_TRUE(Contains(once.out, "cogging@2")) << once.out;
-  EXPECT_TRUE(Contains(once.out, "structgp identify --data " + train + " --effects 'cogging@2"))
-      << once.out;
+  EXPECT_TRUE(Contains(once.out, "chain: The chain identified from the training data does not "
+                                 "carry to this log")) << once.out;
+  EXPECT_TRUE(Contains(once.out, "structgp fit --data " + train + " --model rbd+fri --effects "
+                                 "'cogging@2")) << once.out;
   EXPECT_TRUE(Contains(once.out, "--model rbd+fri --urdf ROBOT.urdf --effects 'cogging@2"))
       << once.out;
+  const Json findings = Json::parse(ReadFile(dir.File("findings.json")));
+  ASSERT_TRUE(findings.at("chain").at("changed").get<bool>()) << findings.at("chain").dump(2);
+  EXPECT_EQ(ReadFile(both), findings.at("chain").at("urdf").get<std::string>());
+  // --no-reidentify: the model's own chain, and the command to identify it again.
+  const Result own = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train", train,
+                                  "--json", dir.File("own.json"), "--no-reidentify"});
+  ASSERT_EQ(own.code, 0) << own.err;
+  EXPECT_FALSE(Contains(own.out, "chain: ")) << own.out;
+  EXPECT_TRUE(Contains(own.out, "structgp identify --data " + train + " --effects 'cogging@2"))
+      << own.out;
+  EXPECT_TRUE(Json::parse(ReadFile(dir.File("own.json"))).at("chain").is_null());
 
   const std::string again = dir.File("again.urdf"), loop = dir.File("loop.json");
   const Result rounds = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train",
@@ -1292,11 +1311,11 @@ TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
   const Result alone = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--out-urdf",
                                     dir.File("a.urdf"), "--json", dir.File("a.json")});
   EXPECT_EQ(alone.code, 2);
-  EXPECT_TRUE(Contains(alone.err, "--out-urdf goes with --rounds")) << alone.err;
+  EXPECT_TRUE(Contains(alone.err, "--out-urdf goes with --train")) << alone.err;
   const Result flag_alone = RunCli(dir, {"diagnose", "--model", model, "--data", test,
                                          "--no-reidentify", "--json", dir.File("a.json")});
   EXPECT_EQ(flag_alone.code, 2);
-  EXPECT_TRUE(Contains(flag_alone.err, "--no-reidentify goes with --rounds")) << flag_alone.err;
+  EXPECT_TRUE(Contains(flag_alone.err, "--no-reidentify goes with --train")) << flag_alone.err;
   for (const char* f : {"kept.urdf", "kept.json", "p.urdf", "p.json", "a.urdf", "a.json"}) {
     EXPECT_FALSE(std::ifstream(dir.File(f)).good()) << f;
   }

@@ -88,14 +88,20 @@ class DiagnoseCommand : public Command {
                     "With --rounds: the model with every added effect, refitted (the model as "
                     "given when nothing is added)");
     cmd->add_flag("--no-reidentify", no_reidentify_,
-                  "With --rounds, rbd on a URDF that 'structgp identify' wrote: refit on that "
-                  "chain as it is (by default the chain is identified again from --train with "
-                  "the added effects beside it before each refit, so that a torque the first "
-                  "identification did not know no longer bends its kinematics; its starts run "
-                  "on --threads threads, by default on the machine's)");
+                  "With --train, rbd on a URDF that 'structgp identify' wrote: keep that chain "
+                  "as it is. By default the diagnosis identifies the chain again on --train and "
+                  "--data together (a local search from the model's own) and, when that chain "
+                  "explains --data better, diagnoses the model on it (a chain found from slow "
+                  "motion can be wrong where only faster motion shows it); and with --rounds "
+                  "the chain is identified again from --train with the added effects beside it "
+                  "before each refit, so that a torque the first identification did not know "
+                  "no longer bends its kinematics (its starts on --threads threads, by default "
+                  "on the machine's)");
     cmd->add_option("--out-urdf", out_urdf_,
-                    "With --rounds, when the chain was identified again: the last one, as a URDF "
-                    "(--out's model file holds it too)");
+                    "With --train, on a model whose chain 'structgp identify' wrote: the chain "
+                    "identified again, as a URDF (with --rounds: the chain of --out's model, "
+                    "which holds it too; without: the one identified on --train and --data "
+                    "together)");
     cmd->add_option("--nystrom", options_.nystrom_features,
                     "Function-space models (rbf, rbfs, pol from 4 joints): Nystrom features of "
                     "the model's kernel the candidates are scored against")
@@ -128,12 +134,17 @@ class DiagnoseCommand : public Command {
     }
     if (loop) CheckOutputPath("--out", out_);
     if (!out_urdf_.empty()) {
-      if (!loop) throw UsageError("--out-urdf goes with --rounds, --train and --out");
+      if (train_.empty()) throw UsageError("--out-urdf goes with --train");
       CheckOutputPath("--out-urdf", out_urdf_);
     }
-    if (no_reidentify_ && !loop) {
-      throw UsageError("--no-reidentify goes with --rounds, --train and --out (the loop's refits)");
+    if (no_reidentify_ && train_.empty()) {
+      throw UsageError("--no-reidentify goes with --train (the chain is identified again on the "
+                       "training data)");
     }
+    options_.reidentify_chain = !no_reidentify_;
+    // The identification's starts on --threads threads when given, else on the machine's.
+    options_.chain.num_threads =
+        command_->count("--threads") > 0 ? load_.num_threads : MachineThreads();
     FromString(autocorrelation_, &options_.autocorrelation);  // checked by the flag
     std::FILE* const text_out = TextStream({{"--json", json_}, {"--report", report_}});
     const RobotModel model = LoadModelFile(model_, load_);
@@ -182,6 +193,14 @@ class DiagnoseCommand : public Command {
     if (!report_.empty()) {
       outputs.push_back({"--report", report_, ReportHtml(model, data, diagnosis, "")});
     }
+    if (!out_urdf_.empty()) {  // the chain identified on the training data and the log
+      if (!diagnosis.chain || diagnosis.chain->urdf.empty()) {
+        throw NumericalError("--out-urdf " + out_urdf_ + ": " +
+                             (diagnosis.chain ? diagnosis.chain->message
+                                              : std::string("the chain was not identified again")));
+      }
+      outputs.push_back({"--out-urdf", out_urdf_, diagnosis.chain->urdf});
+    }
     std::fprintf(text_out, "diagnosis of %s (%s) on %s: %d samples\n", ModelLabel(model.spec()).c_str(),
                 model_.c_str(), data_.c_str(), data.size());
     std::fputs(DiagnosisSummary(diagnosis, model.spec(), options_).c_str(), text_out);
@@ -192,12 +211,21 @@ class DiagnoseCommand : public Command {
       for (const Suggestion& s : diagnosis.suggestions) {
         effects += (effects.empty() ? "" : ",") + s.spec;
       }
-      std::fprintf(text_out,
-                   "the model's chain was identified from torques ('structgp identify'): identify "
-                   "it again with these effects before the refit (or run the loop: --train, "
-                   "--rounds, --out):\n  structgp identify --data %s --effects '%s' --out "
-                   "robot.urdf\n",
-                   train_.empty() ? "TRAIN.csv" : train_.c_str(), effects.c_str());
+      if (diagnosis.chain && diagnosis.chain->changed) {
+        std::fprintf(text_out,
+                     "the suggestions are against the chain identified again on the training "
+                     "data and this log: fit on it with them (--out-urdf writes it):\n"
+                     "  structgp fit --data %s --model %s --effects '%s' --urdf %s --out "
+                     "model.json\n",
+                     train_.c_str(), ToString(model.spec()).c_str(), effects.c_str(), out_urdf_.empty() ? "ROBOT.urdf" : out_urdf_.c_str());
+      } else {
+        std::fprintf(text_out,
+                     "the model's chain was identified from torques ('structgp identify'): "
+                     "identify it again with these effects before the refit (or run the loop: "
+                     "--train, --rounds, --out):\n  structgp identify --data %s --effects '%s' "
+                     "--out robot.urdf\n",
+                     train_.empty() ? "TRAIN.csv" : train_.c_str(), effects.c_str());
+      }
     }
     return kExitOk;
   }
@@ -223,9 +251,7 @@ class DiagnoseCommand : public Command {
     loop.max_rounds = rounds_;
     loop.diagnosis = options_;
     loop.reidentify_chain = !no_reidentify_;
-    // The identification's starts on --threads threads when given, else on the machine's.
-    loop.chain.num_threads =
-        command_->count("--threads") > 0 ? load_.num_threads : MachineThreads();
+    loop.chain.num_threads = options_.chain.num_threads;
     std::optional<RobotModel> improved;
     DiagnosisLoopSummary summary;
     try {

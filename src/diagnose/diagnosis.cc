@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -22,6 +23,7 @@
 #include "structgp/feature/effects.h"
 #include "structgp/feature/friction_feature_map.h"
 #include "structgp/feature/regressor_feature_map.h"
+#include "structgp/fit/fit_model.h"
 #include "structgp/kernel/nystrom_feature_map.h"
 #include "structgp/core/row_subset.h"
 #include "structgp/core/segments.h"
@@ -32,6 +34,8 @@
 #include "structgp/internal/text.h"
 #include "structgp/model/sufficient_statistics.h"
 #include "structgp/model/weight_space_gp.h"
+#include "structgp/rigid_body/dh_chain.h"
+#include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
 namespace {
@@ -1349,6 +1353,93 @@ Diagnosis DiagnoseOrThrow(const RobotModel& model, const ConstMatrixRef& X,
 
 namespace {
 
+// A model on a chain IdentifyChain found (DiagnosisOptions::reidentify_chain): the chain
+// identified again on the rows X (the model's inputs: training rows and log), torques Y and
+// times t, from the model's own kinematics, with the model's effects and `beside` in its least
+// squares, and the model (its effects only) fitted again on it from its training data. Empty
+// when the model's chain is not one identify wrote (*finding untouched), or when the search or
+// the fit failed (*finding says what).
+std::optional<RobotModel> ChainAgain(const RobotModel& model, const ConstMatrixRef& X,
+                                     const ConstMatrixRef& Y, const Vector& t,
+                                     const std::vector<EffectSpec>& beside,
+                                     const DiagnosisOptions& options,
+                                     std::optional<ChainFinding>* finding) {
+  const std::shared_ptr<const RigidBodyChain>& chain = model.options().rigid_body;
+  if (!chain) return std::nullopt;
+  const std::optional<Vector> kinematics = ChainKinematicsOf(*chain);
+  if (!kinematics) return std::nullopt;
+  const auto start = std::chrono::steady_clock::now();
+  const int N = model.num_joints();
+  ChainFinding c;
+  c.kinematics_before = *kinematics;
+  ChainIdentificationOptions o = options.chain;
+  o.friction = model.spec().friction;
+  o.effects = model.spec().effects;
+  o.effects.insert(o.effects.end(), beside.begin(), beside.end());
+  c.effects = ToString(beside);
+  o.friction_width = model.options().friction_width;
+  o.initial_kinematics = *kinematics;
+  o.robot_name = chain->robot_name();
+  std::optional<RobotModel> out;
+  try {  // too few rows for the effects' bases, an effect that needs the times, no usable chain
+    const ChainIdentificationSummary id = IdentifyChain(X.leftCols(3 * N), t, Y, o);
+    c.kinematics = id.kinematics;
+    c.cost = ChainIdentificationCost(id);
+    c.urdf = id.urdf;
+    FitOptions fit;
+    fit.model = model.options();
+    fit.model.rigid_body = std::make_shared<const RigidBodyChain>(
+        RigidBodyChain::FromUrdfString(id.urdf, {}, chain->source()));
+    fit.per_joint = model.per_joint();
+    StartFromModel(model, &fit);
+    FittedModel refit = FitModel(model.spec(), options.training_inputs.leftCols(3 * N),
+                                 options.training_targets, options.training_times, fit);
+    if (refit.summary.IsUsable()) {
+      out.emplace(std::move(refit.model));
+    } else {
+      c.message = "the model could not be fitted on the chain identified again: " +
+                  refit.summary.message;
+    }
+  } catch (const std::exception& e) {
+    c.message = std::string("the chain could not be identified again: ") + e.what();
+  }
+  c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  *finding = std::move(c);
+  return out;
+}
+
+// ChainFinding::message once the two diagnoses are compared.
+std::string ChainMessage(const ChainFinding& c, double fall) {
+  if (!c.changed) {
+    return internal::Format(
+        "The chain identified again on the training data and this log (from the model's "
+        "own%s, %.1f s) does not explain the log better (no joint's refitted error falls by "
+        "%.0f%% with none rising as much): the findings are against the model as it is.",
+        c.effects.empty() ? "" : (", with " + c.effects + " beside it").c_str(), c.seconds,
+        100 * fall);
+  }
+  std::string joints;
+  for (size_t k = 0; k < c.joints.size(); ++k) {
+    const int j = c.joints[k] - 1;
+    joints += internal::Format("%s%d (%.3g -> %.3g)", k == 0 ? "" : ", ", j + 1,
+                               c.refit_rms_before[j], c.refit_rms_after[j]);
+  }
+  std::string explained;
+  for (size_t k = 0; k < c.explained.size(); ++k) {
+    explained += (k == 0 ? "" : ", ") + c.explained[k];
+  }
+  return internal::Format(
+      "The chain identified from the training data does not carry to this log: identified "
+      "again on both (from the model's own%s, %.1f s), it lowers the refitted error on joint%s "
+      "%s. The findings are against the model on that chain%s; fit the model on it (diagnose "
+      "--out-urdf writes it) or identify the chain on the training data and this log together.",
+      c.effects.empty() ? "" : (", with " + c.effects + " beside it").c_str(), c.seconds,
+      c.joints.size() > 1 ? "s" : "", joints.c_str(),
+      explained.empty() ? ""
+                        : (", which explains what was suggested on the model's own chain: " +
+                           explained).c_str());
+}
+
 // Distance of every row of X to the nearest training state, per joint, in the joint's
 // (q, qd, qdd) standardised by the training data; decimated in time into the finding.
 void MeasureCoverage(const ConstMatrixRef& X, const Vector& t, const Matrix& train, int N,
@@ -1583,35 +1674,100 @@ Diagnosis Diagnose(const RobotModel& model, const ConstMatrixRef& X, const Const
   const ConstMatrixRef Xs = with_training ? ConstMatrixRef(Xu) : X;
   const ConstMatrixRef Ys = with_training ? ConstMatrixRef(Yu) : Y;
   const Vector& ts = with_training ? tu : t;
-  try {
-    Diagnosis out;
-    if (!model.regressor_map() && !(model.fitted() && model.gp().euler_lagrange() != nullptr) &&
-        !model.per_joint()) {
-      out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 0, 1);
-    } else {
-      // One joint at a time against its own row of the regressor (lagk: Nystrom features of its
-      // torque; per-joint hyper-parameters: its own prior); the suggestions merged.
-      out = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, 1, N);
-      for (int j = 2; j <= N && out.status == DiagnosisStatus::kOk; ++j) {
-        Diagnosis joint = DiagnoseOrThrow(model, Xs, Ys, ts, starts, log_begin, options, j, N);
-        if (joint.status != DiagnosisStatus::kOk) return joint;
-        out.joints[static_cast<size_t>(j - 1)].refit_rms = joint.joints[static_cast<size_t>(j - 1)].refit_rms;
-        out.joints[static_cast<size_t>(j - 1)].noise_std_estimate =
-            joint.joints[static_cast<size_t>(j - 1)].noise_std_estimate;
-        out.joints[static_cast<size_t>(j - 1)].residual_rms_with_suggestions =
-            joint.joints[static_cast<size_t>(j - 1)].residual_rms_with_suggestions;
-        out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
-                               joint.suggestions.end());
-        out.refused.insert(out.refused.end(), joint.refused.begin(), joint.refused.end());
-      }
-      OrderFindings(options, &out);
+  // The candidates of a model scored on the rows (one joint at a time where the model needs it:
+  // against its own row of the regressor, lagk's Nystrom features of its torque, per-joint
+  // hyper-parameters' own prior), the suggestions merged.
+  auto scored = [&](const RobotModel& m) {
+    if (!m.regressor_map() && !(m.fitted() && m.gp().euler_lagrange() != nullptr) &&
+        !m.per_joint()) {
+      return DiagnoseOrThrow(m, Xs, Ys, ts, starts, log_begin, options, 0, 1);
     }
+    Diagnosis out = DiagnoseOrThrow(m, Xs, Ys, ts, starts, log_begin, options, 1, N);
+    for (int j = 2; j <= N && out.status == DiagnosisStatus::kOk; ++j) {
+      Diagnosis joint = DiagnoseOrThrow(m, Xs, Ys, ts, starts, log_begin, options, j, N);
+      if (joint.status != DiagnosisStatus::kOk) return joint;
+      JointFinding& to = out.joints[static_cast<size_t>(j - 1)];
+      const JointFinding& from = joint.joints[static_cast<size_t>(j - 1)];
+      to.refit_rms = from.refit_rms;
+      to.noise_std_estimate = from.noise_std_estimate;
+      to.residual_rms_with_suggestions = from.residual_rms_with_suggestions;
+      out.suggestions.insert(out.suggestions.end(), joint.suggestions.begin(),
+                             joint.suggestions.end());
+      out.refused.insert(out.refused.end(), joint.refused.begin(), joint.refused.end());
+    }
+    OrderFindings(options, &out);
+    return out;
+  };
+  try {
+    Diagnosis out = scored(model);
+    // A chain IdentifyChain found, identified again on the training rows and the log.
+    std::optional<RobotModel> rechained;
+    if (out.status == DiagnosisStatus::kOk && with_training && options.reidentify_chain) {
+      // The suggestions on the model's own chain beside it (not those of the log alone): a
+      // missing effect would bend the chain as it bent the first identification.
+      std::vector<EffectSpec> beside;
+      for (const Suggestion& s : out.suggestions) {
+        if (s.scope == "log") continue;
+        for (EffectSpec& e : ParseEffectList(s.spec)) beside.push_back(std::move(e));
+      }
+      rechained = ChainAgain(model, Xs, Ys, ts, beside, options, &out.chain);
+      if (rechained) {
+        Diagnosis after = scored(*rechained);
+        if (after.status != DiagnosisStatus::kOk) {
+          out.chain->message = "the model on the chain identified again could not be diagnosed: " +
+                               after.message;
+          rechained.reset();
+        } else {
+          ChainFinding& c = *out.chain;
+          c.refit_rms_before.resize(N);
+          c.refit_rms_after.resize(N);
+          // Better where it falls by min_residual_fall, and nowhere worse by as much: a chain
+          // the least squares cannot tell from the model's can need inertial parameters the
+          // refit's prior does not expect.
+          bool worse = false;
+          for (int j = 0; j < N; ++j) {
+            c.refit_rms_before[j] = out.joints[static_cast<size_t>(j)].refit_rms;
+            c.refit_rms_after[j] = after.joints[static_cast<size_t>(j)].refit_rms;
+            if (c.refit_rms_after[j] < (1.0 - options.min_residual_fall) * c.refit_rms_before[j]) {
+              c.joints.push_back(j + 1);
+            }
+            worse |= c.refit_rms_after[j] > (1.0 + options.min_residual_fall) * c.refit_rms_before[j];
+          }
+          if (worse) c.joints.clear();
+          c.changed = !c.joints.empty();
+          if (c.changed) {
+            for (const Suggestion& s : out.suggestions) {
+              const bool kept = std::any_of(
+                  after.suggestions.begin(), after.suggestions.end(), [&](const Suggestion& a) {
+                    return a.effect == s.effect && a.joint == s.joint;
+                  });
+              if (!kept) c.explained.push_back(s.spec);
+            }
+            // The model's own error on the log stays its own; everything refitted is the
+            // chain's identified again.
+            for (int j = 0; j < N; ++j) {
+              JointFinding& to = after.joints[static_cast<size_t>(j)];
+              const JointFinding& from = out.joints[static_cast<size_t>(j)];
+              to.rms = from.rms;
+              to.nmse = from.nmse;
+              to.concentrations = from.concentrations;
+            }
+            after.chain = std::move(out.chain);
+            out = std::move(after);
+          } else {
+            rechained.reset();
+          }
+          out.chain->message = ChainMessage(*out.chain, options.min_residual_fall);
+        }
+      }
+    }
+    const RobotModel& final_model = rechained ? *rechained : model;
     if (out.status == DiagnosisStatus::kOk) {
       if (options.training_inputs.size() != 0) {
         MeasureCoverage(X, t, options.training_inputs, N, &out);
       }
       Conclude(options, &out);
-      out.holding = HoldingTorques(model, Xs, Ys, starts, options.holding);
+      out.holding = HoldingTorques(final_model, Xs, Ys, starts, options.holding);
       out.holding.message = HoldingTorqueMessage(out.holding, log_begin);
     }
     return out;
@@ -1761,6 +1917,35 @@ std::string ToJson(const Diagnosis& d) {
     h["joints"].push_back(jj);
   }
   j["holding_torque"] = h;
+  if (d.chain) {
+    const ChainFinding& chain = *d.chain;
+    auto list = [](const Vector& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+    const std::vector<std::string> names =
+        ChainKinematicNames(std::max(1, static_cast<int>(d.joints.size())));
+    auto by_name = [&](const Vector& v) {
+      nlohmann::ordered_json k = nlohmann::ordered_json::object();
+      for (size_t i = 0; i < names.size() && static_cast<Eigen::Index>(i) < v.size(); ++i) {
+        k[names[i]] = v[static_cast<Eigen::Index>(i)];
+      }
+      return k;
+    };
+    nlohmann::ordered_json jc;
+    jc["changed"] = chain.changed;
+    jc["joints"] = chain.joints;
+    jc["refit_rms_before"] = list(chain.refit_rms_before);
+    jc["refit_rms_after"] = list(chain.refit_rms_after);
+    jc["explained"] = chain.explained;
+    jc["kinematics_before"] = by_name(chain.kinematics_before);
+    jc["kinematics"] = by_name(chain.kinematics);
+    jc["effects"] = chain.effects;
+    jc["cost"] = chain.cost;
+    jc["seconds"] = chain.seconds;
+    jc["message"] = chain.message;
+    jc["urdf"] = chain.urdf;
+    j["chain"] = jc;
+  } else {
+    j["chain"] = nullptr;
+  }
   return j.dump(2) + "\n";
 }
 

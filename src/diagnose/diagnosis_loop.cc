@@ -22,16 +22,6 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-// The identification's cost at its end: refined, else after the length moves, else the best
-// start's.
-double FinalCost(const ChainIdentificationSummary& s) {
-  if (std::isfinite(s.refined_cost)) return s.refined_cost;
-  if (std::isfinite(s.moved_cost)) return s.moved_cost;
-  double best = std::numeric_limits<double>::infinity();
-  for (double c : s.start_costs) best = std::min(best, c);
-  return best;
-}
-
 }  // namespace
 
 bool DiagnosisLoopOptions::IsValid(std::string* error) const {
@@ -81,7 +71,7 @@ std::string DiagnosisLoopSummary::BriefReport() const {
       const ChainIdentificationSummary& id = *r.identification;
       text += internal::Format(
           "; chain identified again with them in %.1f s (cost %.4g, %d of %d kept starts at it)",
-          r.identification_seconds, FinalCost(id), id.starts_at_best,
+          r.identification_seconds, ChainIdentificationCost(id), id.starts_at_best,
           static_cast<int>(id.starts.size()));
     }
     if (r.refit) {
@@ -109,7 +99,8 @@ std::string ToJson(const DiagnosisLoopSummary& summary) {
     round["model"] = r.model;
     round["added"] = r.added.empty() ? std::string() : ToString(r.added);
     if (r.identification) {
-      Json id = {{"seconds", r.identification_seconds}, {"cost", FinalCost(*r.identification)}};
+      Json id = {{"seconds", r.identification_seconds},
+                 {"cost", ChainIdentificationCost(*r.identification)}};
       // The identification's own JSON (ChainIdentificationSummary), less the options' echo.
       ChainIdentificationOptions echo;
       Json full = Json::parse(ToJson(*r.identification, echo));

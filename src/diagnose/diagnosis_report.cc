@@ -82,6 +82,7 @@ std::string DiagnosisReport(const Diagnosis& d, const ModelSpec& spec,
     rows.push_back(row);
   }
   os << Table(rows);
+  if (d.chain) os << "chain: " << d.chain->message << "\n";
   os << "verdict: " << ToString(d.coverage.verdict) << ": " << d.coverage.message << "\n";
   if (!d.holding.message.empty()) os << "at rest: " << d.holding.message << "\n";
   if (d.suggestions.empty()) {

@@ -40,18 +40,27 @@
 /// missing effect; with the training inputs (DiagnosisOptions::training_inputs) the finding
 /// also says where the log leaves the training states.
 ///
+/// A model on a chain that IdentifyChain found, diagnosed with its training data: the chain's
+/// kinematics are fitted parameters as its inertial ones are, so the chain is identified again
+/// on the training data and the log together before any effect is tried (ChainFinding). When
+/// that chain explains the log better, the findings are against the model on it: a chain
+/// found from slow motion can be wrong in a wrist the slow torques hardly show, and the error
+/// a faster log then shows is the chain's, not a missing effect's.
+///
 /// Each effect proposes its own parameters from the residual of a refit
 /// (Effect::ProposeParameters: cogging period, Stribeck velocity, drift time origin and span),
 /// so a user's registered effect gets parameter estimation too; effects the model contains
 /// (same name on the joint, or a block of Effect::spanned_by) are not tried.
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "structgp/core/types.h"
 #include "structgp/diagnose/holding_torque.h"
 #include "structgp/feature/effect_parameter.h"
+#include "structgp/fit/chain_identification.h"
 #include "structgp/model/robot_model.h"
 
 namespace structgp {
@@ -148,6 +157,25 @@ struct DiagnosisOptions {
   /// Torques at rest that the state does not determine (Diagnosis::holding): the still
   /// stretches of the log and of the training rows, when given, each a trajectory of its own.
   HoldingTorqueOptions holding;
+  /// A model on a chain IdentifyChain found (its URDF as identify wrote it: ChainKinematicsOf),
+  /// diagnosed with training_targets: the chain is identified again on the training rows and
+  /// the log together (IdentifyChain with `chain`, from the model's own kinematics, with the
+  /// model's friction and effects beside it, and the effects the diagnosis on the model's own
+  /// chain suggests for every row) and the model fitted again on it (FitModel from
+  /// the model's hyper-parameters). When the log's error of that model, refitted on the
+  /// training rows and the log, is lower by min_residual_fall on some joint than the model's
+  /// own chain gives (and higher by as much on none), the findings are against it
+  /// (Diagnosis::chain).
+  bool reidentify_chain = true;
+  /// That identification's search; by default a local one from the model's kinematics (no
+  /// random starts, no length moves). friction, friction_width, effects, initial_kinematics
+  /// and robot_name are the model's.
+  ChainIdentificationOptions chain = [] {
+    ChainIdentificationOptions o;
+    o.starts = 0;
+    o.length_moves = false;
+    return o;
+  }();
 
   /// True when the options are usable; otherwise false with the reason in *error (may be
   /// null).
@@ -329,6 +357,41 @@ struct CoverageFinding {
   Matrix distance;
 };
 
+/// The chain identified again on the training data and the log (DiagnosisOptions::
+/// reidentify_chain; FINDINGS.json "chain").
+struct ChainFinding {
+  /// True when the chain identified again lowers the log's error of the model refitted on the
+  /// training rows and the log by min_residual_fall on some joint (`joints`) and raises it by
+  /// as much on none (a chain the least squares cannot tell from the model's can need inertial
+  /// parameters the refit's prior does not expect): the joints'
+  /// refit_rms, the coverage finding and the suggestions are then against the model on that
+  /// chain (the joints' rms, nmse and concentrations stay the model's own). False: everything
+  /// is against the model as it is.
+  bool changed = false;
+  std::vector<int> joints;
+  /// Per joint: the log's residual RMS of the model on its own chain, refitted on the training
+  /// rows and the log (JointFinding::refit_rms of the diagnosis without the chain identified
+  /// again), and on the chain identified again.
+  Vector refit_rms_before;
+  Vector refit_rms_after;
+  /// The effects beside the chain in that identification besides the model's own: the
+  /// suggestions on the model's chain (not those of the log alone), so that a missing effect
+  /// does not bend the chain identified again (effect list text; empty: none).
+  std::string effects;
+  /// The kinematic parameters (ChainKinematicNames) of the model's chain and of the chain
+  /// identified again, and that identification's final cost (ChainIdentificationSummary).
+  Vector kinematics_before;
+  Vector kinematics;
+  double cost = 0;
+  /// Suggestions (their spec text) the model's own chain gave that the chain identified again
+  /// does not: error of the chain, not a missing effect. Empty unless changed.
+  std::vector<std::string> explained;
+  /// The chain identified again, as a URDF document (ChainUrdf).
+  std::string urdf;
+  double seconds = 0;   ///< the identification and the fit on its chain
+  std::string message;  ///< one sentence for people; what failed when the search or fit did
+};
+
 /// How a diagnosis ended.
 enum class DiagnosisStatus {
   kOk,
@@ -364,6 +427,9 @@ struct Diagnosis {
   /// Stops at the same configuration that hold other torques (static friction): error no
   /// model of the state and no candidate effect explains (FINDINGS.json "holding_torque").
   HoldingTorqueFinding holding;
+  /// Set when DiagnosisOptions::reidentify_chain applied (a model on an identified chain,
+  /// diagnosed with its training data).
+  std::optional<ChainFinding> chain;
 };
 
 /// Diagnoses a fitted model on data X (m x model.input_dim()),
