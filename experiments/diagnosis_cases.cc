@@ -187,6 +187,7 @@ struct Flags {
   bool with_training = true;
   // chain: refits with effects on the chain identified again with them (else on the first).
   bool reidentify = true;
+  bool chain_with_log = false;
 };
 
 // ---- reading a diagnosis --------------------------------------------------------------------
@@ -273,6 +274,7 @@ struct Fit {
 // model is fitted on the same data with the same evidence rows (the file name holds the label,
 // cut to 60 characters, and a hash of the whole label and those). Models with a URDF chain are always fitted.
 std::string g_models_dir;
+bool g_diagnosis_chain = true;  // DiagnosisOptions::reidentify_chain
 // --no-held-out-route: DiagnosisOptions::held_out_may_replace_evidence off.
 bool g_held_out_route = true;
 // --autocorrelation: DiagnosisOptions::autocorrelation.
@@ -389,6 +391,8 @@ Diagnosis RunDiagnosis(const RobotModel& model, const Matrix& X, const Matrix& Y
     DiagnosisOptions options;
     options.held_out_may_replace_evidence = g_held_out_route;
     options.autocorrelation = g_autocorrelation;
+    options.reidentify_chain = g_diagnosis_chain;
+    options.chain.num_threads = g_threads;
     if (train_X != nullptr) {
       options.training_inputs = ModelInputs(model, *train_X, *train_t);
       options.training_targets = *train_Y;
@@ -602,8 +606,19 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
     ChainIdentificationOptions o = g_chain;
     o.num_threads = g_threads;
     o.effects = effects;
-    const ChainIdentificationSummary id =
-        IdentifyChain(logs.train.X, logs.train.t, logs.train.Y, o);
+    // --chain-data=train+log: the diagnosed log's rows beside the training log's.
+    const bool both = f.chain_with_log;
+    Matrix X = logs.train.X, Y = logs.train.Y;
+    Vector t = logs.train.t;
+    if (both) {
+      X.conservativeResize(X.rows() + logs.diag.X.rows(), Eigen::NoChange);
+      X.bottomRows(logs.diag.X.rows()) = logs.diag.X;
+      Y.conservativeResize(Y.rows() + logs.diag.Y.rows(), Eigen::NoChange);
+      Y.bottomRows(logs.diag.Y.rows()) = logs.diag.Y;
+      t.conservativeResize(t.size() + logs.diag.t.size());
+      t.tail(logs.diag.t.size()) = logs.diag.t;
+    }
+    const ChainIdentificationSummary id = IdentifyChain(X, t, Y, o);
     std::fprintf(stderr,
                  "%s %s chain%s%s: identified in %.0f s, %d round%s, %d of %d kept starts at the "
                  "best cost %.3g\n",
@@ -634,6 +649,7 @@ SimRow RunSimCase(const std::string& robot_name, const std::string& case_name,
                                      &logs.train.t);
     std::fprintf(stderr, "%s %s %s: diagnosis %.0f s: %s\n", robot_name.c_str(),
                  case_name.c_str(), name.c_str(), diag_seconds, SuggestionList(d).c_str());
+    if (d.chain) std::fprintf(stderr, "  %s\n", d.chain->message.c_str());
     return d;
   };
   std::fprintf(stderr, "%s %s %s: fit %.0f s\n", robot_name.c_str(), case_name.c_str(),
@@ -1318,6 +1334,14 @@ int main(int argc, char** argv) {
           "(DiagnosisOptions::autocorrelation)")
       ->check(CLI::IsMember({"bartlett", "prewhitening", "none"}))
       ->capture_default_str();
+  app.add_flag("--diagnosis-chain,!--no-diagnosis-chain", structgp::g_diagnosis_chain,
+               "part A, model chain: the diagnosis identifies the chain again on the training "
+               "data and the log (DiagnosisOptions::reidentify_chain; the default)");
+  app.add_option("--chain-data", f.chain_with_log,
+                 "part A, model chain: identify the chain on the training log (train, the "
+                 "default) or on the training and the diagnosed log together (train+log)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"train", false},
+                                                                      {"train+log", true}}));
   app.add_flag("--reidentify,!--no-reidentify", f.reidentify,
                "part A, model chain: refits with effects (the suggestions, the true ones) on a "
                "chain identified again with those effects in its least squares, as a user "
