@@ -93,3 +93,36 @@ def test_diagnose_loop_identifies_an_identified_chain_again(cli, tmp_path):
     with pytest.raises(ValueError, match="threads"):
         structgp.diagnose_loop(model, test.X, test.Y, test.t, train=(train.X, train.Y, train.t),
                                threads=0)
+
+
+def test_diagnose_identifies_an_identified_chain_again_on_both_logs(cli, tmp_path):
+    # The first chain, bent by a cogging ripple it was not told of: the diagnosis identifies it
+    # again on both logs with the ripple it names beside it, and says whether that chain
+    # explains the fast log better; reidentify=False diagnoses the model's own chain.
+    run(cli, "demo", "--effect", "cogging", "--joint", 2, "--out", tmp_path / "demo", "--quiet")
+    train = structgp.read_robot_csv(str(tmp_path / "demo" / "train.csv"))
+    test = structgp.read_robot_csv(str(tmp_path / "demo" / "test.csv"))
+    found = structgp.identify_chain(train.X, train.Y, starts=4, rounds=1, threads=2)
+    path = tmp_path / "robot.urdf"
+    path.write_text(found["urdf"])
+    model = structgp.Model("rbd+fri", urdf=str(path)).fit(train.X, train.Y, train.t)
+    both = structgp.diagnose(model, test.X, test.Y, test.t, train=(train.X, train.Y, train.t),
+                             threads=2)
+    chain = json.loads(both.to_json())["chain"]
+    assert chain is not None
+    assert "cogging@2" in chain["effects"]
+    assert len(chain["refit_rms_before"]) == len(chain["refit_rms_after"]) == 2
+    assert chain["changed"] == bool(chain["joints"])
+    for j in chain["joints"]:
+        assert chain["refit_rms_after"][j - 1] < 0.97 * chain["refit_rms_before"][j - 1]
+    assert list(chain["kinematics"]) == ["tilt", "theta1", "alpha2", "a2"]
+    assert chain["urdf"].startswith("<?xml") and chain["seconds"] > 0
+    assert any(s.effect == "cogging" and s.joint == 2 for s in both.suggestions)
+    assert "chain: " in str(both)
+    own = structgp.diagnose(model, test.X, test.Y, test.t, train=(train.X, train.Y, train.t),
+                            reidentify=False)
+    assert json.loads(own.to_json())["chain"] is None
+    assert any(s.effect == "cogging" and s.joint == 2 for s in own.suggestions)
+    with pytest.raises(ValueError, match="threads"):
+        structgp.diagnose(model, test.X, test.Y, test.t, train=(train.X, train.Y, train.t),
+                          threads=0)
