@@ -1256,7 +1256,7 @@ TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
   const std::string both = dir.File("both.urdf");
   const Result once = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train", train,
                                    "--json", dir.File("findings.json"), "--out-urdf", both,
-                                   "--threads", "2"});
+                                   "--threads", "2", "--report", dir.File("report.html")});
   ASSERT_EQ(once.code, 0) << once.err;
   EXPECT_TRUE(Contains(once.out, "cogging@2")) << once.out;
   EXPECT_TRUE(Contains(once.out, "chain: The chain identified from the training data does not "
@@ -1268,6 +1268,9 @@ TEST(CliUrdf, DiagnoseRoundsIdentifyAnIdentifiedChainAgain) {
   const Json findings = Json::parse(ReadFile(dir.File("findings.json")));
   ASSERT_TRUE(findings.at("chain").at("changed").get<bool>()) << findings.at("chain").dump(2);
   EXPECT_EQ(ReadFile(both), findings.at("chain").at("urdf").get<std::string>());
+  EXPECT_TRUE(Contains(ReadFile(dir.File("report.html")),
+                       "<p class=\"chain\" data-changed=\"true\"><b>Chain:</b> The chain "
+                       "identified from the training data does not carry"));
   // --no-reidentify: the model's own chain, and the command to identify it again.
   const Result own = RunCli(dir, {"diagnose", "--model", model, "--data", test, "--train", train,
                                   "--json", dir.File("own.json"), "--no-reidentify"});

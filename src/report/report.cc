@@ -639,6 +639,11 @@ void AppendVerdict(const ReportData& data, std::string* html) {
            "\"><b>" + headline + "</b>";
   if (!c.message.empty()) *html += "<br><span class=\"message\">" + Escape(c.message) + "</span>";
   *html += "</p>\n";
+  if (d.chain) {
+    *html += std::string("<p class=\"chain\" data-changed=\"") +
+             (d.chain->changed ? "true" : "false") + "\"><b>Chain:</b> " +
+             Escape(d.chain->message) + "</p>\n";
+  }
   if (!d.holding.message.empty()) {
     *html += "<p class=\"holding-torque\"><b>At rest:</b> " + Escape(d.holding.message) +
              "</p>\n";
