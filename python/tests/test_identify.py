@@ -62,9 +62,9 @@ def test_identify_chain_takes_effects_and_their_time(demo):
         structgp.identify_chain(train.X, train.Y, effects="offset@3", starts=2)
 
 
-def test_diagnose_loop_identifies_an_identified_chain_again(cli, tmp_path):
-    # A cogging ripple on joint 2 the first identification is not told of: the loop names it and
-    # identifies the chain again with it; with reidentify=False the chain stays.
+def _model_on_a_chain_bent_by_a_ripple(cli, tmp_path):
+    """The demo's logs with a cogging ripple on joint 2, the chain identify_chain finds from the
+    slow log without being told of it, and rbd+fri fitted on that chain."""
     run(cli, "demo", "--effect", "cogging", "--joint", 2, "--out", tmp_path / "demo", "--quiet")
     train = structgp.read_robot_csv(str(tmp_path / "demo" / "train.csv"))
     test = structgp.read_robot_csv(str(tmp_path / "demo" / "test.csv"))
@@ -72,6 +72,13 @@ def test_diagnose_loop_identifies_an_identified_chain_again(cli, tmp_path):
     path = tmp_path / "robot.urdf"
     path.write_text(found["urdf"])
     model = structgp.Model("rbd+fri", urdf=str(path)).fit(train.X, train.Y, train.t)
+    return train, test, found, model
+
+
+def test_diagnose_loop_identifies_an_identified_chain_again(cli, tmp_path):
+    # A cogging ripple on joint 2 the first identification is not told of: the loop names it and
+    # identifies the chain again with it; with reidentify=False the chain stays.
+    train, test, found, model = _model_on_a_chain_bent_by_a_ripple(cli, tmp_path)
     improved, loop = structgp.diagnose_loop(model, test.X, test.Y, test.t,
                                             train=(train.X, train.Y, train.t), rounds=1,
                                             threads=2)
@@ -99,13 +106,7 @@ def test_diagnose_identifies_an_identified_chain_again_on_both_logs(cli, tmp_pat
     # The first chain, bent by a cogging ripple it was not told of: the diagnosis identifies it
     # again on both logs with the ripple it names beside it, and says whether that chain
     # explains the fast log better; reidentify=False diagnoses the model's own chain.
-    run(cli, "demo", "--effect", "cogging", "--joint", 2, "--out", tmp_path / "demo", "--quiet")
-    train = structgp.read_robot_csv(str(tmp_path / "demo" / "train.csv"))
-    test = structgp.read_robot_csv(str(tmp_path / "demo" / "test.csv"))
-    found = structgp.identify_chain(train.X, train.Y, starts=4, rounds=1, threads=2)
-    path = tmp_path / "robot.urdf"
-    path.write_text(found["urdf"])
-    model = structgp.Model("rbd+fri", urdf=str(path)).fit(train.X, train.Y, train.t)
+    train, test, found, model = _model_on_a_chain_bent_by_a_ripple(cli, tmp_path)
     both = structgp.diagnose(model, test.X, test.Y, test.t, train=(train.X, train.Y, train.t),
                              threads=2)
     chain = json.loads(both.to_json())["chain"]
