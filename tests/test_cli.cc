@@ -1229,6 +1229,29 @@ TEST(CliUrdf, IdentifyWritesAUrdfWhoseRbdModelPredictsAsTheRobotsOwn) {
   EXPECT_EQ(with_summary["rounds"].get<int>(), 1);
   EXPECT_EQ(with_summary["start_costs"].size(), 2u);
   EXPECT_EQ(with_summary["cost_change"].size(), 8u);
+
+  // Several files are searched together, their rows one after the other; all timed or none.
+  const Result two = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--data",
+                                  demo + "/test.csv", "--out", dir.File("two.urdf"), "--json",
+                                  dir.File("two.json"), "--starts", "2", "--kept-starts", "2",
+                                  "--rounds", "1", "--threads", "2", "--quiet"});
+  ASSERT_EQ(two.code, 0) << two.err;
+  auto rows = [&](const std::string& file) {
+    const std::string text = ReadFile(file);
+    return static_cast<int>(std::count(text.begin(), text.end(), '\n')) - 1;  // the header
+  };
+  const Json two_summary = Json::parse(ReadFile(dir.File("two.json")));
+  EXPECT_EQ(two_summary["data"], Json::array({demo + "/train.csv", demo + "/test.csv"}));
+  EXPECT_EQ(two_summary["num_samples"].get<int>(),
+            rows(demo + "/train.csv") + rows(demo + "/test.csv"));
+  EXPECT_TRUE(Contains(two.out, "next: structgp fit --data " + demo + "/train.csv ")) << two.out;
+  const Result mixed = RunCli(dir, {"identify", "--data", demo + "/train.csv", "--data",
+                                    dir.File("untimed.csv"), "--out", dir.File("mixed.urdf")});
+  EXPECT_EQ(mixed.code, 2);
+  EXPECT_TRUE(Contains(mixed.err, "untimed.csv:1: has no 't' column, but " + demo +
+                                      "/train.csv has one"))
+      << mixed.err;
+  EXPECT_FALSE(std::ifstream(dir.File("mixed.urdf")).good());
 }
 
 // rbd over a URDF that identify wrote: one diagnosis identifies the chain again on both logs

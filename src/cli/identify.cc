@@ -24,7 +24,9 @@ class IdentifyCommand : public Command {
         "Find the robot's kinematic chain (where each joint axis lies) from a torque log and "
         "write it as a URDF, for rbd models of a robot whose URDF is not at hand");
     cmd->add_option("--data", data_,
-                    "Data: CSV with columns q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN")
+                    "Data: CSV with columns q1..qN, qd1..qdN, qdd1..qddN, tau1..tauN; several "
+                    "files (--data A --data B: a slow training log and a faster one, say) are "
+                    "searched together")
         ->required();
     cmd->add_option("--out", out_, "URDF file to write (replaced atomically; - for stdout)")
         ->required();
@@ -90,14 +92,40 @@ class IdentifyCommand : public Command {
     if (!effects_.empty()) options_.effects = ParseSpecFlags("rbd", effects_).effects;
     if (options_.num_threads < 1) options_.num_threads = MachineThreads();
     const Progress progress("identify", quiet_);
-    progress.Line("reading " + data_);
-    const RobotData data = ReadData(data_);
-    if (data.target == RobotData::Target::kCurrent) {
-      throw UsageError(data_ + ": has motor currents (cur1..cur" +
-                       std::to_string(data.num_joints) +
-                       "), identify needs joint torques (tau1..): the chain's inertial "
-                       "parameters act on every joint's torque, and a current's gain per joint "
-                       "is not known");
+    // Every file's rows, one after the other, with the same joints, all timed or none.
+    RobotData data;
+    std::string files;
+    for (const std::string& path : data_) {
+      progress.Line("reading " + path);
+      const RobotData part = files.empty() ? ReadData(path) : ReadData(path, data.num_joints);
+      if (part.target == RobotData::Target::kCurrent) {
+        throw UsageError(path + ": has motor currents (cur1..cur" +
+                         std::to_string(part.num_joints) +
+                         "), identify needs joint torques (tau1..): the chain's inertial "
+                         "parameters act on every joint's torque, and a current's gain per "
+                         "joint is not known");
+      }
+      if (files.empty()) {
+        data = part;
+      } else {
+        if (part.has_time() != data.has_time()) {
+          throw DataError(path, 1, 0,
+                          std::string(part.has_time() ? "has" : "has no") + " 't' column, but " +
+                              data_.front() + (data.has_time() ? " has one" : " has none") +
+                              ": the files are searched together, all with their times or none");
+        }
+        auto append = [](Matrix* to, const Matrix& rows) {
+          to->conservativeResize(to->rows() + rows.rows(), Eigen::NoChange);
+          to->bottomRows(rows.rows()) = rows;
+        };
+        append(&data.X, part.X);
+        append(&data.Y, part.Y);
+        if (data.has_time()) {
+          data.t.conservativeResize(data.t.size() + part.t.size());
+          data.t.tail(part.t.size()) = part.t;
+        }
+      }
+      files += (files.empty() ? "" : ", ") + path;
     }
     const int N = data.num_joints;
     progress.Line("searching the kinematics of " + std::to_string(N) + " joints from " +
@@ -109,10 +137,14 @@ class IdentifyCommand : public Command {
 
     const std::vector<std::string> names = ChainKinematicNames(N);
     // The library's JSON of the search, after the data it ran on.
-    nlohmann::ordered_json doc = {{"data", data_}, {"num_samples", data.size()}};
+    nlohmann::ordered_json doc = {
+        {"data", data_.size() == 1 ? nlohmann::ordered_json(data_.front())
+                                   : nlohmann::ordered_json(data_)},
+        {"num_samples", data.X.rows()}};
     doc.update(nlohmann::ordered_json::parse(ToJson(s, options_)));
 
-    std::fprintf(text_out, "data   %s: %d samples, %d joints\n", data_.c_str(), data.size(), N);
+    std::fprintf(text_out, "data   %s: %d samples, %d joints\n", files.c_str(),
+                 static_cast<int>(data.X.rows()), N);
     const int kept = static_cast<int>(s.starts.size());
     if (kept < options_.starts * s.rounds) {
       std::fprintf(text_out, "search %d starts screened (%d iterations on %d rows), the %d best "
@@ -205,13 +237,15 @@ class IdentifyCommand : public Command {
           options_.effects.empty() ? "" : " --effects '" + ToString(options_.effects) + "'";
       std::fprintf(text_out,
                    "next: structgp fit --data %s --model rbd%s --urdf %s%s --out model.json\n",
-                   data_.c_str(), options_.friction ? "+fri" : "", out_.c_str(), effects.c_str());
+                   data_.front().c_str(), options_.friction ? "+fri" : "", out_.c_str(),
+                   effects.c_str());
     }
     return kExitOk;
   }
 
  private:
-  std::string data_, out_, json_, effects_;
+  std::vector<std::string> data_;
+  std::string out_, json_, effects_;
   bool no_friction_ = false;
   bool quiet_ = false;
   ChainIdentificationOptions options_ = [] {

@@ -1432,7 +1432,8 @@ std::string ChainMessage(const ChainFinding& c, double fall) {
       "The chain identified from the training data does not carry to this log: identified "
       "again on both (from the model's own%s, %.1f s), it lowers the refitted error on joint%s "
       "%s. The findings are against the model on that chain%s; fit the model on it (diagnose "
-      "--out-urdf writes it) or identify the chain on the training data and this log together.",
+      "--out-urdf writes it) or identify the chain on the training data and this log together "
+      "(structgp identify --data TRAIN --data LOG).",
       c.effects.empty() ? "" : (", with " + c.effects + " beside it").c_str(), c.seconds,
       c.joints.size() > 1 ? "s" : "", joints.c_str(),
       explained.empty() ? ""
