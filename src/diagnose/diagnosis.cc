@@ -1366,20 +1366,17 @@ std::optional<RobotModel> ChainAgain(const RobotModel& model, const ConstMatrixR
                                      std::optional<ChainFinding>* finding) {
   const std::shared_ptr<const RigidBodyChain>& chain = model.options().rigid_body;
   if (!chain) return std::nullopt;
-  const std::optional<Vector> kinematics = ChainKinematicsOf(*chain);
-  if (!kinematics) return std::nullopt;
+  ModelSpec with_beside = model.spec();
+  with_beside.effects.insert(with_beside.effects.end(), beside.begin(), beside.end());
+  const std::optional<ChainIdentificationOptions> again = SearchAgainOptions(
+      *chain, with_beside, model.options().friction_width, options.chain);
+  if (!again) return std::nullopt;
+  const ChainIdentificationOptions& o = *again;
   const auto start = std::chrono::steady_clock::now();
   const int N = model.num_joints();
   ChainFinding c;
-  c.kinematics_before = *kinematics;
-  ChainIdentificationOptions o = options.chain;
-  o.friction = model.spec().friction;
-  o.effects = model.spec().effects;
-  o.effects.insert(o.effects.end(), beside.begin(), beside.end());
+  c.kinematics_before = o.initial_kinematics;
   c.effects = ToString(beside);
-  o.friction_width = model.options().friction_width;
-  o.initial_kinematics = *kinematics;
-  o.robot_name = chain->robot_name();
   std::optional<RobotModel> out;
   try {  // too few rows for the effects' bases, an effect that needs the times, no usable chain
     const ChainIdentificationSummary id = IdentifyChain(X.leftCols(3 * N), t, Y, o);
@@ -1410,12 +1407,13 @@ std::optional<RobotModel> ChainAgain(const RobotModel& model, const ConstMatrixR
 
 // ChainFinding::message once the two diagnoses are compared.
 std::string ChainMessage(const ChainFinding& c, double fall) {
+  const std::string beside = c.effects.empty() ? "" : ", with " + c.effects + " beside it";
   if (!c.changed) {
     return internal::Format(
         "The chain identified again on the training data and this log (from the model's "
         "own%s, %.1f s) does not explain the log better (no joint's refitted error falls by "
         "%.0f%% with none rising as much): the findings are against the model as it is.",
-        c.effects.empty() ? "" : (", with " + c.effects + " beside it").c_str(), c.seconds,
+        beside.c_str(), c.seconds,
         100 * fall);
   }
   std::string joints;
@@ -1434,7 +1432,7 @@ std::string ChainMessage(const ChainFinding& c, double fall) {
       "%s. The findings are against the model on that chain%s; fit the model on it (diagnose "
       "--out-urdf writes it) or identify the chain on the training data and this log together "
       "(structgp identify --data TRAIN --data LOG).",
-      c.effects.empty() ? "" : (", with " + c.effects + " beside it").c_str(), c.seconds,
+      beside.c_str(), c.seconds,
       c.joints.size() > 1 ? "s" : "", joints.c_str(),
       explained.empty() ? ""
                         : (", which explains what was suggested on the model's own chain: " +

@@ -12,7 +12,6 @@
 #include <nlohmann/json.hpp>
 
 #include "structgp/internal/text.h"
-#include "structgp/rigid_body/dh_chain.h"
 #include "structgp/rigid_body/rigid_body_chain.h"
 
 namespace structgp {
@@ -181,15 +180,12 @@ DiagnosisLoopSummary RunDiagnosisLoop(const DiagnosisLoopOptions& options, const
     if (options.refit_from_model) StartFromModel(current, &round_fit);
     // A chain IdentifyChain found is found again with the effects beside it.
     const std::shared_ptr<const RigidBodyChain>& chain = current.options().rigid_body;
-    const std::optional<Vector> kinematics =
-        options.reidentify_chain && chain ? ChainKinematicsOf(*chain) : std::nullopt;
-    if (kinematics) {
-      ChainIdentificationOptions o = options.chain;
-      o.friction = spec.friction;
-      o.effects = spec.effects;
-      o.friction_width = current.options().friction_width;
-      o.initial_kinematics = *kinematics;
-      o.robot_name = chain->robot_name();
+    const std::optional<ChainIdentificationOptions> again =
+        options.reidentify_chain && chain
+            ? SearchAgainOptions(*chain, spec, current.options().friction_width, options.chain)
+            : std::nullopt;
+    if (again) {
+      const ChainIdentificationOptions& o = *again;
       const auto identify_start = std::chrono::steady_clock::now();
       try {  // options it refuses, too few rows for the effects' bases, no usable chain
         r.identification = IdentifyChain(train_states, train_t, train_torques, o);

@@ -565,6 +565,20 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& states, const Con
   return IdentifyChain(X, Y, options);
 }
 
+std::optional<ChainIdentificationOptions> SearchAgainOptions(const RigidBodyChain& chain,
+                                                             const ModelSpec& spec,
+                                                             double friction_width,
+                                                             ChainIdentificationOptions search) {
+  std::optional<Vector> kinematics = ChainKinematicsOf(chain);
+  if (!kinematics) return std::nullopt;
+  search.friction = spec.friction;
+  search.effects = spec.effects;
+  search.friction_width = friction_width;
+  search.initial_kinematics = std::move(*kinematics);
+  search.robot_name = chain.robot_name();
+  return search;
+}
+
 double ChainIdentificationCost(const ChainIdentificationSummary& s) {
   if (std::isfinite(s.refined_cost)) return s.refined_cost;
   if (std::isfinite(s.moved_cost)) return s.moved_cost;

@@ -23,6 +23,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,8 @@
 #include "structgp/rigid_body/dh_chain.h"
 
 namespace structgp {
+
+class RigidBodyChain;
 
 struct ChainIdentificationOptions {
   /// The friction of `+fri` per joint in the least squares: viscous, Coulomb and a constant
@@ -149,6 +152,15 @@ ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& X, const ConstMat
 ChainIdentificationSummary IdentifyChain(const ConstMatrixRef& states, const ConstVectorRef& t,
                                          const ConstMatrixRef& Y,
                                          const ChainIdentificationOptions& options = {});
+
+/// The search for `chain` again from where it is, when IdentifyChain found it (its URDF as
+/// identify wrote it: ChainKinematicsOf): `search` with the chain's kinematics as
+/// initial_kinematics, its robot name, and the friction of `spec` (+fri, Coulomb width
+/// friction_width) and its effects beside it. nullopt for any other chain.
+std::optional<ChainIdentificationOptions> SearchAgainOptions(const RigidBodyChain& chain,
+                                                             const ModelSpec& spec,
+                                                             double friction_width,
+                                                             ChainIdentificationOptions search);
 
 /// The identification's cost at its end: after the refinement, else after the length moves,
 /// else the best start's (ChainIdentificationSummary: each a mean squared residual over
